@@ -1,0 +1,1 @@
+"""The Cassie runtime library: LCM bus, loops, timing, harness, config and supervisor."""

@@ -1,0 +1,535 @@
+"""Loading and validating hw_config: hosts, channels, processes, gains and launch profiles.
+
+A launch profile is one YAML file that includes others (``include:``, relative to it). The
+sections ``lcm``, ``hosts``, ``channels`` and ``processes`` are merged entry by entry, later
+files winning; ``overrides`` in the profile patch single processes. Every value is checked here,
+at load time, and every error names the file, the dotted key and what is allowed.
+The LCM URL can be overridden with the ``CASSIE_LCM_URL`` environment variable (tests use it
+to isolate runs on their own multicast port).
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import os
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from runtime.config_types import (
+    ChannelConfig,
+    HostConfig,
+    ProcessConfig,
+    Profile,
+    RestartPolicy,
+)
+from runtime.errors import ConfigError
+
+__all__ = ["HW_CONFIG_DIR", "ConfigError", "find_profile", "load_profile", "load_yaml"]
+
+HW_CONFIG_DIR = Path(__file__).resolve().parent.parent / "hw_config"
+
+PROFILE_KEYS = {
+    "profile",
+    "description",
+    "include",
+    "mode",
+    "launch",
+    "overrides",
+    "timing_report_hz",
+    "lcm",
+    "hosts",
+    "channels",
+    "processes",
+    "supervisor",
+}
+PROCESS_KEYS = {
+    "host",
+    "module",
+    "rate_hz",
+    "deadline_ms",
+    "inputs",
+    "outputs",
+    "depends_on",
+    "ready",
+    "restart",
+    "required",
+    "cpu_affinity",
+    "nice",
+    "gc",
+    "params",
+    "gains",
+    "description",
+}
+RESTART_KEYS = {"policy", "max_restarts", "window_s", "backoff_initial_s", "backoff_max_s"}
+MODES = ("realtime", "lockstep")
+RESTART_POLICIES = ("always", "on-failure", "never")
+
+
+def load_yaml(path: Path) -> dict[str, Any]:
+    """Read a YAML mapping, with errors that name the file."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError as exc:
+        raise ConfigError(str(path), "<file>", "file not found") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(str(path), "<file>", f"not valid YAML: {exc}") from exc
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(str(path), "<top level>", f"must be a mapping, got {type(data).__name__}")
+    return data
+
+
+def find_profile(name_or_path: str) -> Path:
+    """A profile by path, or by name in hw_config/ (``sim`` -> ``hw_config/sim.yaml``)."""
+    p = Path(name_or_path)
+    if p.exists():
+        return p.resolve()
+    for candidate in (HW_CONFIG_DIR / name_or_path, HW_CONFIG_DIR / f"{name_or_path}.yaml"):
+        if candidate.exists():
+            return candidate.resolve()
+    known = sorted(x.stem for x in HW_CONFIG_DIR.glob("*.yaml") if _is_profile(x))
+    raise ConfigError(
+        name_or_path,
+        "<profile>",
+        "no such profile file",
+        allowed=", ".join(known) + " (or a path to a profile YAML)",
+    )
+
+
+def _is_profile(path: Path) -> bool:
+    try:
+        return "launch" in load_yaml(path)
+    except ConfigError:
+        return False
+
+
+class _Checker:
+    """Small typed accessors that raise ConfigError naming file and key."""
+
+    def __init__(self, file: Path | str) -> None:
+        self.file = str(file)
+
+    def fail(self, key: str, problem: str, allowed: str | None = None) -> ConfigError:
+        return ConfigError(self.file, key, problem, allowed)
+
+    def mapping(self, value: Any, key: str) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(key, f"must be a mapping, got {value!r}")
+        return value
+
+    def known_keys(self, d: dict[str, Any], key: str, allowed: set[str]) -> None:
+        for k in d:
+            if k not in allowed:
+                raise self.fail(
+                    f"{key}.{k}" if key else str(k),
+                    "unknown key",
+                    allowed=", ".join(sorted(allowed)),
+                )
+
+    def number(
+        self,
+        d: dict[str, Any],
+        key: str,
+        name: str,
+        *,
+        default: Any = ...,
+        lo: float | None = None,
+        hi: float | None = None,
+        integer: bool = False,
+        lo_open: bool = False,
+    ) -> Any:
+        full = f"{key}.{name}" if key else name
+        if name not in d or d[name] is None:
+            if default is ...:
+                raise self.fail(full, "is required")
+            return default
+        v = d[name]
+        kind = "an integer" if integer else "a number"
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float))
+            or (integer and not isinstance(v, int))
+        ):
+            raise self.fail(full, f"must be {kind}, got {v!r}", allowed=_range(lo, hi, lo_open))
+        if (
+            v != v
+            or (lo is not None and (v < lo or (lo_open and v == lo)))
+            or (hi is not None and v > hi)
+        ):
+            raise self.fail(full, f"out of range: {v!r}", allowed=_range(lo, hi, lo_open))
+        return int(v) if integer else float(v)
+
+    def string(
+        self,
+        d: dict[str, Any],
+        key: str,
+        name: str,
+        *,
+        default: Any = ...,
+        choices: tuple[str, ...] | None = None,
+    ) -> Any:
+        full = f"{key}.{name}" if key else name
+        if name not in d or d[name] is None:
+            if default is ...:
+                raise self.fail(
+                    full, "is required", allowed=", ".join(choices) if choices else None
+                )
+            return default
+        v = d[name]
+        if not isinstance(v, str) or not v:
+            raise self.fail(
+                full,
+                f"must be a non-empty string, got {v!r}",
+                allowed=", ".join(choices) if choices else None,
+            )
+        if choices is not None and v not in choices:
+            raise self.fail(
+                full, f"{v!r} is not one of the allowed values", allowed=", ".join(choices)
+            )
+        return v
+
+    def boolean(self, d: dict[str, Any], key: str, name: str, default: bool) -> bool:
+        v = d.get(name, default)
+        if not isinstance(v, bool):
+            raise self.fail(f"{key}.{name}", f"must be true or false, got {v!r}", "true, false")
+        return v
+
+
+def _range(lo: float | None, hi: float | None, lo_open: bool = False) -> str | None:
+    if lo is None and hi is None:
+        return None
+    left = "(" if lo_open else "["
+    return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}]"
+
+
+def _merge(dst: dict[str, Any], src: dict[str, Any]) -> dict[str, Any]:
+    """Deep-merge ``src`` into a copy of ``dst``: mappings merge, everything else replaces."""
+    out = copy.deepcopy(dst)
+    for k, v in src.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = _merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def load_profile(path: str | Path) -> Profile:
+    """Load, merge and validate a launch profile and everything it includes."""
+    path = find_profile(str(path))
+    hw_dir = path.parent
+    sections: dict[str, dict[str, tuple[Any, Path]]] = {
+        "hosts": {},
+        "channels": {},
+        "processes": {},
+    }
+    lcm_url: tuple[str, Path] | None = None
+    seen: list[Path] = []
+
+    def absorb(file: Path, data: dict[str, Any]) -> None:
+        nonlocal lcm_url
+        ck = _Checker(file)
+        if file in seen:
+            raise ck.fail("include", "files include each other in a cycle")
+        seen.append(file)
+        ck.known_keys(data, "", PROFILE_KEYS)
+        includes = data.get("include", [])
+        if not isinstance(includes, list) or not all(isinstance(x, str) for x in includes):
+            raise ck.fail("include", f"must be a list of file names, got {includes!r}")
+        for inc in includes:
+            inc_path = (file.parent / inc).resolve()
+            if not inc_path.exists():
+                raise ck.fail(
+                    "include",
+                    f"included file {inc!r} does not exist",
+                    allowed=", ".join(sorted(p.name for p in file.parent.glob("*.yaml"))),
+                )
+            absorb(inc_path, load_yaml(inc_path))
+        if "lcm" in data:
+            lcm = ck.mapping(data["lcm"], "lcm")
+            ck.known_keys(lcm, "lcm", {"url"})
+            url = ck.string(lcm, "lcm", "url")
+            if not (url.startswith("udpm://") or url.startswith("memq://")):
+                raise ck.fail(
+                    "lcm.url",
+                    f"{url!r} is not an LCM URL",
+                    allowed="udpm://GROUP:PORT (or memq:// for one process)",
+                )
+            lcm_url = (url, file)
+        for section in sections:
+            if section in data:
+                entries = ck.mapping(data[section], section)
+                for name, value in entries.items():
+                    sections[section][str(name)] = (value, file)
+
+    data = load_yaml(path)
+    absorb(path, data)
+    ck = _Checker(path)
+    name = ck.string(data, "", "profile", default=path.stem)
+    mode = ck.string(data, "", "mode", default="realtime", choices=MODES)
+    report_hz = ck.number(data, "", "timing_report_hz", default=10.0, lo=0.1, hi=100.0)
+    url = os.environ.get("CASSIE_LCM_URL") or (
+        lcm_url[0] if lcm_url else "udpm://239.255.76.67:7667"
+    )
+
+    hosts = {}
+    for hname, (value, file) in sections["hosts"].items():
+        hc = _Checker(file)
+        h = hc.mapping(value, f"hosts.{hname}")
+        hc.known_keys(h, f"hosts.{hname}", {"address", "description"})
+        hosts[hname] = HostConfig(
+            hname, hc.string(h, f"hosts.{hname}", "address"), str(h.get("description", ""))
+        )
+
+    channels = {
+        cname: _channel(cname, value, file) for cname, (value, file) in sections["channels"].items()
+    }
+
+    overrides = data.get("overrides") or {}
+    ck.mapping(overrides, "overrides")
+    for pname in overrides:
+        if pname not in sections["processes"]:
+            raise ck.fail(
+                f"overrides.{pname}",
+                "no such process",
+                allowed=", ".join(sorted(sections["processes"])),
+            )
+    processes = {}
+    for pname, (value, file) in sections["processes"].items():
+        raw = _Checker(file).mapping(value, f"processes.{pname}")
+        override = None
+        if pname in overrides:
+            override = ck.mapping(overrides[pname], f"overrides.{pname}")
+            raw = _merge(raw, override)
+        try:
+            processes[pname] = _process(pname, raw, file, hosts, channels, hw_dir)
+        except ConfigError as exc:
+            raise _blame_override(exc, pname, override, path) from None
+
+    launch = data.get("launch")
+    if not isinstance(launch, list) or not launch or not all(isinstance(x, str) for x in launch):
+        raise ck.fail(
+            "launch",
+            f"must be a non-empty list of process names, got {launch!r}",
+            allowed=", ".join(sorted(processes)),
+        )
+    for i, pname in enumerate(launch):
+        if pname not in processes:
+            raise ck.fail(
+                f"launch[{i}]", f"no process named {pname!r}", allowed=", ".join(sorted(processes))
+            )
+    for pname in launch:
+        for dep in processes[pname].depends_on:
+            if dep not in launch:
+                raise ck.fail(
+                    "launch",
+                    f"{pname} depends on {dep}, which this profile does not launch",
+                    allowed=", ".join(sorted(processes)),
+                )
+    sup = ck.mapping(data.get("supervisor") or {}, "supervisor")
+    ck.known_keys(sup, "supervisor", {"status_channel", "orders_channel", "timing_channel"})
+    return Profile(
+        name=name,
+        path=path,
+        hw_config_dir=hw_dir,
+        mode=mode,
+        lcm_url=url,
+        hosts=hosts,
+        channels=channels,
+        processes=processes,
+        launch=tuple(launch),
+        timing_report_hz=report_hz,
+        status_channel=ck.string(sup, "supervisor", "status_channel", default="SUPERVISOR_STATUS"),
+        orders_channel=ck.string(sup, "supervisor", "orders_channel", default="SUPERVISOR_ORDERS"),
+        timing_channel=ck.string(sup, "supervisor", "timing_channel", default="TIMING"),
+    )
+
+
+def _blame_override(
+    exc: ConfigError, pname: str, override: dict[str, Any] | None, profile_path: Path
+) -> ConfigError:
+    """Point an error at the profile's ``overrides`` entry when the value came from there."""
+    prefix = f"processes.{pname}."
+    if override is None or not exc.key.startswith(prefix):
+        return exc
+    node: Any = override
+    for part in exc.key[len(prefix) :].split("."):
+        if not isinstance(node, dict) or part not in node:
+            return exc
+        node = node[part]
+    return ConfigError(
+        str(profile_path), f"overrides.{pname}." + exc.key[len(prefix) :], exc.problem, exc.allowed
+    )
+
+
+def _channel(cname: str, value: Any, file: Path) -> ChannelConfig:
+    ck = _Checker(file)
+    key = f"channels.{cname}"
+    if isinstance(value, str):
+        if not value.replace("_", "").isalnum():
+            raise ck.fail(
+                key,
+                f"{value!r} is not a valid LCM channel name",
+                allowed="letters, digits and underscores",
+            )
+        return ChannelConfig(cname, value)
+    d = ck.mapping(value, key)
+    ck.known_keys(d, key, {"udp", "name"})
+    if "udp" in d:
+        addr = ck.string(d, key, "udp")
+        host, _, port_s = addr.rpartition(":")
+        if not host or not port_s.isdigit() or not 0 < int(port_s) < 65536:
+            raise ck.fail(
+                f"{key}.udp", f"{addr!r} is not HOST:PORT", allowed="e.g. 127.0.0.1:25000"
+            )
+        return ChannelConfig(cname, f"udp:{addr}", udp=(host, int(port_s)))
+    return ChannelConfig(cname, ck.string(d, key, "name"))
+
+
+def _process(
+    pname: str,
+    d: dict[str, Any],
+    file: Path,
+    hosts: dict[str, HostConfig],
+    channels: dict[str, ChannelConfig],
+    hw_dir: Path,
+) -> ProcessConfig:
+    ck = _Checker(file)
+    key = f"processes.{pname}"
+    ck.known_keys(d, key, PROCESS_KEYS)
+    host = ck.string(d, key, "host", choices=tuple(sorted(hosts)) or None)
+    module = ck.string(d, key, "module")
+    if importlib.util.find_spec(module.split(".")[0]) is None:
+        raise ck.fail(f"{key}.module", f"no importable Python package for {module!r}")
+    rate = ck.number(d, key, "rate_hz", default=None, lo=0.0, hi=100000.0, lo_open=True)
+    deadline = ck.number(d, key, "deadline_ms", default=None, lo=0.0, hi=60000.0, lo_open=True)
+
+    def ports(section: str) -> dict[str, ChannelConfig]:
+        table = ck.mapping(d.get(section) or {}, f"{key}.{section}")
+        out = {}
+        for role, cname in table.items():
+            if cname not in channels:
+                raise ck.fail(
+                    f"{key}.{section}.{role}",
+                    f"unknown channel {cname!r}",
+                    allowed=", ".join(sorted(channels)),
+                )
+            out[str(role)] = channels[cname]
+        return out
+
+    inputs, outputs = ports("inputs"), ports("outputs")
+    deps = d.get("depends_on") or []
+    if not isinstance(deps, list) or not all(isinstance(x, str) for x in deps):
+        raise ck.fail(f"{key}.depends_on", f"must be a list of process names, got {deps!r}")
+    ready = ck.mapping(d.get("ready") or {}, f"{key}.ready")
+    ck.known_keys(ready, f"{key}.ready", {"channel", "timeout_s"})
+    ready_ch = None
+    if "channel" in ready:
+        cname = ck.string(ready, f"{key}.ready", "channel")
+        if cname not in channels:
+            raise ck.fail(
+                f"{key}.ready.channel",
+                f"unknown channel {cname!r}",
+                allowed=", ".join(sorted(channels)),
+            )
+        ready_ch = channels[cname]
+    else:
+        ready_ch = next((c for c in outputs.values() if not c.is_udp), None)
+    ready_timeout = ck.number(
+        ready, f"{key}.ready", "timeout_s", default=15.0, lo=0.0, lo_open=True
+    )
+    r = ck.mapping(d.get("restart") or {}, f"{key}.restart")
+    ck.known_keys(r, f"{key}.restart", RESTART_KEYS)
+    restart = RestartPolicy(
+        policy=ck.string(
+            r, f"{key}.restart", "policy", default="on-failure", choices=RESTART_POLICIES
+        ),
+        max_restarts=ck.number(
+            r, f"{key}.restart", "max_restarts", default=5, lo=0, hi=1000, integer=True
+        ),
+        window_s=ck.number(r, f"{key}.restart", "window_s", default=60.0, lo=0.0, lo_open=True),
+        backoff_initial_s=ck.number(r, f"{key}.restart", "backoff_initial_s", default=0.5, lo=0.0),
+        backoff_max_s=ck.number(r, f"{key}.restart", "backoff_max_s", default=8.0, lo=0.0),
+    )
+    aff = d.get("cpu_affinity")
+    if aff is not None and (
+        not isinstance(aff, list)
+        or not aff
+        or not all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in aff)
+    ):
+        raise ck.fail(
+            f"{key}.cpu_affinity",
+            f"must be a list of CPU numbers, got {aff!r}",
+            allowed=f"CPU numbers 0..{(os.cpu_count() or 1) - 1}",
+        )
+    nice = ck.number(d, key, "nice", default=None, lo=-20, hi=19, integer=True)
+    gains = d.get("gains")
+    gains_file = None
+    if gains is not None:
+        gains_file = (hw_dir / ck.string(d, key, "gains")).resolve()
+        if not gains_file.exists():
+            raise ck.fail(
+                f"{key}.gains",
+                f"gains file {gains!r} does not exist",
+                allowed="a path relative to hw_config/, e.g. gains/osc.yaml",
+            )
+    params = ck.mapping(d.get("params") or {}, f"{key}.params")
+    return ProcessConfig(
+        name=pname,
+        host=host,
+        module=module,
+        source_file=file,
+        rate_hz=rate,
+        deadline_ms=deadline,
+        inputs=inputs,
+        outputs=outputs,
+        depends_on=tuple(deps),
+        ready_channel=ready_ch,
+        ready_timeout_s=ready_timeout,
+        restart=restart,
+        required=ck.boolean(d, key, "required", True),
+        cpu_affinity=tuple(aff) if aff else None,
+        nice=nice,
+        gc=ck.string(d, key, "gc", default="freeze", choices=("on", "freeze")),
+        params=params,
+        gains_file=gains_file,
+    )
+
+
+def check_depends(profile: Profile) -> list[str]:
+    """The profile's processes in dependency order (dependencies first); ConfigError on a cycle."""
+    order: list[str] = []
+    state: dict[str, int] = {}
+
+    def visit(name: str, chain: list[str]) -> None:
+        if state.get(name) == 2:
+            return
+        if state.get(name) == 1:
+            proc = profile.processes[name]
+            raise ConfigError(
+                str(proc.source_file),
+                proc.key("depends_on"),
+                "dependency cycle: " + " -> ".join([*chain, name]),
+            )
+        state[name] = 1
+        proc = profile.processes[name]
+        for dep in proc.depends_on:
+            if dep not in profile.processes:
+                raise ConfigError(
+                    str(proc.source_file),
+                    proc.key("depends_on"),
+                    f"no process named {dep!r}",
+                    allowed=", ".join(sorted(profile.processes)),
+                )
+            visit(dep, [*chain, name])
+        state[name] = 2
+        order.append(name)
+
+    for name in profile.launch:
+        visit(name, [])
+    return order

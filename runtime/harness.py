@@ -1,0 +1,245 @@
+"""The deterministic harness: the same node objects, stepped in sim-time order in one process.
+
+No LCM, no sockets, no wall clock: a message published at sim time t reaches its subscribers at
+t (plus an optional modelled latency per node), periodic nodes tick at ``k * period`` of sim
+time, and ties are broken by the order events were scheduled. The result therefore depends only
+on the nodes and their inputs, never on how busy the machine is -- walking experiments and CI
+give the same answer on a 2-core box as on a fast one. Messages are encoded and decoded on the
+way, exactly as on the bus, so a node cannot tell the difference (and cannot share objects).
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from collections import defaultdict, deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from runtime.node import Node
+
+US = 1_000_000
+
+
+@dataclass
+class Binding:
+    """A node and the channel names its roles are bound to, plus its modelled compute delay."""
+
+    node: Node
+    inputs: Mapping[str, str]
+    outputs: Mapping[str, str]
+    delay_us: int = 0  # sim time between the trigger and the tick's outputs being visible
+
+
+@dataclass
+class _Port:
+    msg_type: type | None
+    policy: str = "newest"
+    last_raw: bytes | None = None
+    decoded: Any | None = None
+    fresh: bool = False
+    queue: deque[bytes] = field(default_factory=deque)
+
+    def decode(self, raw: bytes) -> Any:
+        if self.msg_type is None or self.msg_type is bytes:
+            return raw
+        return self.msg_type.decode(raw)  # type: ignore[attr-defined]
+
+
+class _Inbox:
+    def __init__(self, ports: dict[str, _Port]) -> None:
+        self._ports = ports
+        self._trigger: Any | None = None
+
+    def latest(self, role: str) -> Any | None:
+        port = self._ports[role]
+        if port.last_raw is not None:
+            port.decoded = port.decode(port.last_raw)
+            port.last_raw = None
+        port.fresh = False
+        return port.decoded
+
+    def is_fresh(self, role: str) -> bool:
+        return self._ports[role].fresh
+
+    def trigger(self) -> Any | None:
+        return self._trigger
+
+
+class _Context:
+    def __init__(self, harness: Harness, index: int) -> None:
+        self._h = harness
+        self._i = index
+        self.now_utime = 0
+
+    def publish(self, role: str, msg: Any) -> None:
+        self._h._publish(self._i, role, msg)
+
+
+class Harness:
+    """Steps bound nodes in sim-time order; see the module docstring."""
+
+    def __init__(self, bindings: list[Binding]) -> None:
+        self.bindings = bindings
+        self.now_us = 0
+        self._events: list[tuple[int, int, int, str, Any]] = []  # (t, order, node, kind, payload)
+        self._order = 0
+        self._subscribers: dict[str, list[tuple[int, str]]] = defaultdict(list)
+        self._ports: list[dict[str, _Port]] = []
+        self._inboxes: list[_Inbox] = []
+        self._contexts: list[_Context] = []
+        self._pending_tick: list[bool] = []
+        self._seq: dict[str, int] = defaultdict(int)
+        self._taps: dict[str, list[Callable[[int, Any], None]]] = defaultdict(list)
+        self.exec_ns: list[list[int]] = []
+        self.published: dict[str, int] = defaultdict(int)
+        for i, b in enumerate(bindings):
+            ports: dict[str, _Port] = {}
+            for role, typ in b.node.inputs.items():
+                if role not in b.inputs:
+                    raise KeyError(f"{b.node.name}: input role {role!r} is not bound to a channel")
+                policy = b.node.trigger_policy if role == b.node.trigger_role else "newest"
+                ports[role] = _Port(typ, policy)
+                self._subscribers[b.inputs[role]].append((i, role))
+            for role in b.node.outputs:
+                if role not in b.outputs:
+                    raise KeyError(f"{b.node.name}: output role {role!r} is not bound to a channel")
+            self._ports.append(ports)
+            self._inboxes.append(_Inbox(ports))
+            self._contexts.append(_Context(self, i))
+            self._pending_tick.append(False)
+            self.exec_ns.append([])
+        self._started = False
+
+    # -- observation -----------------------------------------------------------------------
+    def tap(self, channel: str, callback: Callable[[int, Any], None]) -> None:
+        """Call ``callback(sim_time_us, decoded_msg)`` for every message on ``channel``."""
+        self._taps[channel].append(callback)
+
+    def inject(self, channel: str, msg: Any, at_us: int | None = None) -> None:
+        """Deliver ``msg`` on ``channel`` at sim time ``at_us`` (default: now), as if published."""
+        t = self.now_us if at_us is None else at_us
+        self._push(t, -1, "deliver", (channel, _encode(msg)))
+
+    # -- running ---------------------------------------------------------------------------
+    def start(self) -> None:
+        if self._started:
+            return
+        self._started = True
+        for i, b in enumerate(self.bindings):
+            b.node.setup(self._contexts[i])
+            if b.node.trigger_role is None:
+                if not b.node.period_s:
+                    raise ValueError(f"{b.node.name}: a periodic node needs period_s")
+                self._push(0, i, "periodic", None)
+
+    def run_until(self, t_us: int, stop: Callable[[], bool] | None = None) -> int:
+        """Process every event up to sim time ``t_us``; returns the sim time reached."""
+        self.start()
+        while self._events and self._events[0][0] <= t_us:
+            t, _, i, kind, payload = heapq.heappop(self._events)
+            self.now_us = t
+            if kind == "deliver":
+                self._deliver(*payload)
+            elif kind == "periodic":
+                self._tick(i, None)
+                period_us = round(self.bindings[i].node.period_s * US)  # type: ignore[operator]
+                self._push(t + period_us, i, "periodic", None)
+            elif kind == "trigger":
+                self._pending_tick[i] = False
+                self._tick_trigger(i)
+            if stop is not None and stop():
+                return self.now_us
+        self.now_us = max(self.now_us, t_us)
+        return self.now_us
+
+    def close(self) -> None:
+        for b in self.bindings:
+            b.node.close()
+
+    # -- internals -------------------------------------------------------------------------
+    def _push(self, t: int, i: int, kind: str, payload: Any) -> None:
+        heapq.heappush(self._events, (t, self._order, i, kind, payload))
+        self._order += 1
+
+    def _publish(self, i: int, role: str, msg: Any) -> None:
+        channel = self.bindings[i].outputs[role]
+        header = getattr(msg, "header", None)
+        if header is not None:
+            header.seq = self._seq[channel]
+            header.send_mono_ns = self.now_us * 1000  # sim time stands in for the monotonic clock
+            if not header.source:
+                header.source = self.bindings[i].node.name
+        self._seq[channel] += 1
+        raw = _encode(msg)
+        delay = self.bindings[i].delay_us
+        if delay:
+            self._push(self.now_us + delay, i, "deliver", (channel, raw))
+        else:
+            self._deliver(channel, raw)
+
+    def _deliver(self, channel: str, raw: bytes) -> None:
+        self.published[channel] += 1
+        taps = self._taps.get(channel)
+        for j, role in self._subscribers.get(channel, ()):
+            port = self._ports[j][role]
+            node = self.bindings[j].node
+            if port.policy == "each":
+                port.queue.append(raw)
+            else:
+                port.last_raw = raw
+            port.fresh = True
+            if node.trigger_role == role:
+                if port.policy == "each":
+                    self._push(self.now_us, j, "trigger", None)
+                elif not self._pending_tick[j]:
+                    self._pending_tick[j] = True
+                    self._push(self.now_us, j, "trigger", None)
+        if taps:
+            decoded = _decode_for_tap(channel, raw, self)
+            for cb in taps:
+                cb(self.now_us, decoded)
+
+    def _tick_trigger(self, i: int) -> None:
+        node = self.bindings[i].node
+        port = self._ports[i][node.trigger_role]  # type: ignore[index]
+        if port.policy == "each":
+            if not port.queue:
+                return
+            msg = port.decode(port.queue.popleft())
+            port.decoded = msg
+            port.fresh = bool(port.queue)
+        else:
+            msg = self._inboxes[i].latest(node.trigger_role)  # type: ignore[arg-type]
+        self._tick(i, msg)
+
+    def _tick(self, i: int, trigger: Any | None) -> None:
+        node = self.bindings[i].node
+        ctx = self._contexts[i]
+        if trigger is None:
+            ctx.now_utime = self.now_us
+        else:
+            header = getattr(trigger, "header", None)
+            ctx.now_utime = int(header.utime) if header is not None else self.now_us
+        inbox = self._inboxes[i]
+        inbox._trigger = trigger
+        t0 = time.perf_counter_ns()
+        node.tick(ctx, inbox)
+        self.exec_ns[i].append(time.perf_counter_ns() - t0)
+
+
+def _encode(msg: Any) -> bytes:
+    return bytes(msg) if isinstance(msg, (bytes, bytearray)) else msg.encode()
+
+
+def _decode_for_tap(channel: str, raw: bytes, h: Harness) -> Any:
+    for j, role in h._subscribers.get(channel, ()):
+        return h._ports[j][role].decode(raw)
+    # Nobody subscribes: find the publisher's declared type.
+    for b in h.bindings:
+        for role, name in b.outputs.items():
+            if name == channel:
+                typ = b.node.outputs[role]
+                return raw if typ is bytes else typ.decode(raw)  # type: ignore[attr-defined]
+    return raw

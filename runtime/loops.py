@@ -1,0 +1,293 @@
+"""Running one node live: LCM and UDP ports, wall-clock loops, self-measurement.
+
+Two loop kinds, as on the robot:
+
+* message-driven: wait for the driving input, drain everything queued, and tick once on the
+  newest message (stale ones are skipped and counted) -- or once per message for ``each``;
+* periodic: absolute deadlines ``t0 + k * period`` (sleep, then spin for the last bit); a tick
+  that runs past its slot makes the loop skip the slots it missed rather than catch up, and each
+  skipped slot is counted as an overrun.
+
+Deadline misses: a periodic tick misses when it ends after ``scheduled + deadline``; a
+message-driven tick misses when it ends more than ``deadline`` after its driving message was
+sent (the response time, LCM hop included). Input age is measured at the end of the tick.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import select
+import signal
+import threading
+import time
+from typing import Any
+
+from runtime.bus import Bus, Subscription
+from runtime.config_types import ChannelConfig, ProcessConfig, Profile
+from runtime.node import Node
+from runtime.timing import LoopTimer
+from runtime.udp import UdpReceiver, UdpSender
+
+log = logging.getLogger(__name__)
+
+Port = Subscription | UdpReceiver
+
+
+class _Context:
+    """Live implementation of ``runtime.node.Context``."""
+
+    def __init__(self, runner: LiveRunner) -> None:
+        self._runner = runner
+        self.now_utime = 0
+
+    def publish(self, role: str, msg: Any) -> None:
+        self._runner._publish(role, msg)
+
+
+class _Inbox:
+    """Live implementation of ``runtime.node.Inbox``."""
+
+    def __init__(self, ports: dict[str, Port]) -> None:
+        self._ports = ports
+        self._trigger: Any | None = None
+
+    def latest(self, role: str) -> Any | None:
+        port = self._ports[role]
+        return port.latest() if port.fresh else port.peek()
+
+    def is_fresh(self, role: str) -> bool:
+        return self._ports[role].fresh
+
+    def trigger(self) -> Any | None:
+        return self._trigger
+
+
+def _send_ns(msg: Any) -> int:
+    header = getattr(msg, "header", None)
+    return int(header.send_mono_ns) if header is not None else 0
+
+
+def _utime(msg: Any) -> int:
+    header = getattr(msg, "header", None)
+    return int(header.utime) if header is not None else 0
+
+
+class LiveRunner:
+    """Wires a Node to real LCM channels and UDP sockets and runs its loop until stopped."""
+
+    def __init__(
+        self,
+        node: Node,
+        proc: ProcessConfig,
+        profile: Profile,
+        bus: Bus | None = None,
+        spin_s: float = 0.0002,
+    ) -> None:
+        self.node = node
+        self.proc = proc
+        self.profile = profile
+        self.bus = bus or Bus(profile.lcm_url, source=proc.name)
+        self.spin_ns = int(spin_s * 1e9)
+        self.stop_event = threading.Event()
+        if node.period_s is None and node.trigger_role is None and proc.rate_hz:
+            node.period_s = 1.0 / proc.rate_hz
+        if node.deadline_s is None:
+            if proc.deadline_ms is not None:
+                node.deadline_s = proc.deadline_ms / 1e3
+            elif node.period_s:
+                node.deadline_s = node.period_s
+        self.ports: dict[str, Port] = {}
+        self._udp_out: dict[str, UdpSender] = {}
+        self._lcm_out: dict[str, str] = {}
+        for role, typ in node.inputs.items():
+            ch = self._channel(role, proc.inputs, "inputs")
+            policy = node.trigger_policy if role == node.trigger_role else "newest"
+            if ch.udp is not None:
+                self.ports[role] = UdpReceiver(ch.udp, policy=policy)
+            else:
+                self.ports[role] = self.bus.subscribe(
+                    ch.name, None if typ is bytes else typ, policy
+                )
+        for role in node.outputs:
+            ch = self._channel(role, proc.outputs, "outputs")
+            if ch.udp is not None:
+                self._udp_out[role] = UdpSender(ch.udp)
+            else:
+                self._lcm_out[role] = ch.name
+        kind = "message" if node.trigger_role else "periodic"
+        self.timer = LoopTimer(
+            proc.name,
+            node.name,
+            kind,
+            node.deadline_s,
+            proc.rate_hz,
+            report_period_s=1.0 / profile.timing_report_hz,
+        )
+        self.ctx = _Context(self)
+        self.inbox = _Inbox(self.ports)
+        self._fds = [self.bus.fileno()] + [
+            p.fileno() for p in self.ports.values() if isinstance(p, UdpReceiver)
+        ]
+
+    def _channel(self, role: str, table: dict[str, ChannelConfig], section: str) -> ChannelConfig:
+        if role not in table:
+            from runtime.errors import ConfigError
+
+            raise ConfigError(
+                self.proc.source_file,
+                self.proc.key(section, role),
+                f"process {self.proc.name} needs a channel for its {section[:-1]} role {role!r}",
+                allowed=", ".join(sorted(self.profile.channels)),
+            )
+        return table[role]
+
+    # -- publishing ------------------------------------------------------------------------
+    def _publish(self, role: str, msg: Any) -> None:
+        sender = self._udp_out.get(role)
+        if sender is not None:
+            sender.send(msg)
+            return
+        self.bus.publish(self._lcm_out[role], msg)
+
+    # -- receiving -------------------------------------------------------------------------
+    def _poll(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` for any input, then drain LCM and every UDP port."""
+        if timeout_s > 0:
+            try:
+                select.select(self._fds, [], [], timeout_s)
+            except InterruptedError:
+                pass
+        self.bus.handle_pending()
+        for port in self.ports.values():
+            if isinstance(port, UdpReceiver):
+                port.drain()
+
+    def _stale_and_errors(self) -> None:
+        self.timer.stale_skipped_total = sum(p.stale_skipped for p in self.ports.values())
+        self.timer.decode_errors_total = sum(p.decode_errors for p in self.ports.values())
+
+    def _maybe_report(self, now_ns: int) -> None:
+        if self.timer.due(now_ns):
+            self._stale_and_errors()
+            msg = self.timer.report(now_ns)
+            msg.header.source = self.proc.name
+            self.bus.publish(self.profile.timing_channel, msg)
+
+    # -- the loops -------------------------------------------------------------------------
+    def run(self, duration_s: float | None = None) -> int:
+        """Run until SIGINT/SIGTERM, ``stop()`` or ``duration_s``; returns an exit code."""
+        self._install_signals()
+        self.node.setup(self.ctx)
+        if self.proc.gc == "freeze":
+            gc.collect()
+            gc.freeze()
+            gc.disable()
+        end_ns = time.monotonic_ns() + int(duration_s * 1e9) if duration_s else None
+        try:
+            if self.node.trigger_role is None:
+                self._run_periodic(end_ns)
+            else:
+                self._run_message(end_ns)
+        finally:
+            self.node.close()
+            for s in self._udp_out.values():
+                s.close()
+            for p in self.ports.values():
+                if isinstance(p, UdpReceiver):
+                    p.close()
+            gc.enable()
+        return 0
+
+    def stop(self) -> None:
+        self.stop_event.set()
+
+    def _install_signals(self) -> None:
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: self.stop_event.set())
+
+    def _run_periodic(self, end_ns: int | None) -> None:
+        period_ns = int((self.node.period_s or 0.001) * 1e9)
+        deadline_ns = int((self.node.deadline_s or self.node.period_s or 0.001) * 1e9)
+        age_role = next(iter(self.node.inputs), None)
+        t0 = time.monotonic_ns()
+        k = 0
+        timer = self.timer
+        while not self.stop_event.is_set():
+            scheduled = t0 + k * period_ns
+            wait = scheduled - time.monotonic_ns()
+            while wait > self.spin_ns:  # sleep in select (inputs may wake it), then spin
+                self._poll((wait - self.spin_ns) / 1e9)
+                wait = scheduled - time.monotonic_ns()
+            while time.monotonic_ns() < scheduled:
+                pass
+            start = time.monotonic_ns()
+            self._poll(0.0)
+            self.ctx.now_utime = (scheduled - t0) // 1000
+            self.inbox._trigger = None
+            self.node.tick(self.ctx, self.inbox)
+            end = time.monotonic_ns()
+            age = -1
+            if age_role is not None:
+                last = self.ports[age_role].peek()
+                sent = _send_ns(last) if last is not None else 0
+                if sent:
+                    age = end - sent
+            timer.last_utime = self.ctx.now_utime
+            timer.record(start, end, start - scheduled, age, end > scheduled + deadline_ns)
+            k += 1
+            next_slot = t0 + k * period_ns
+            if end > next_slot:  # fell behind: skip the missed slots, never catch up in a burst
+                k_new = (end - t0) // period_ns + 1
+                timer.overruns_total += k_new - k
+                k = k_new
+            self._maybe_report(end)
+            if end_ns is not None and end >= end_ns:
+                break
+
+    def _run_message(self, end_ns: int | None) -> None:
+        role = self.node.trigger_role
+        assert role is not None
+        port = self.ports[role]
+        deadline_ns = int((self.node.deadline_s or 0.0) * 1e9)
+        timeout_s = getattr(self.node, "trigger_timeout_s", None)
+        last_trigger_ns = time.monotonic_ns()
+        poll_s = 0.05 if timeout_s is None else min(0.05, timeout_s)
+        while not self.stop_event.is_set():
+            self._poll(poll_s)
+            now = time.monotonic_ns()
+            if port.fresh:
+                if self.node.trigger_policy == "each":
+                    while port.pending():
+                        msg = port.pop()
+                        if msg is None:
+                            break
+                        self._tick_on(msg, port, deadline_ns)
+                else:
+                    msg = port.latest()
+                    if msg is not None:
+                        self._tick_on(msg, port, deadline_ns)
+                last_trigger_ns = time.monotonic_ns()
+            elif timeout_s is not None and now - last_trigger_ns > timeout_s * 1e9:
+                self.inbox._trigger = None
+                self.node.tick(self.ctx, self.inbox)
+                last_trigger_ns = time.monotonic_ns()
+            now = time.monotonic_ns()
+            self._maybe_report(now)
+            if end_ns is not None and now >= end_ns:
+                break
+
+    def _tick_on(self, msg: Any, port: Port, deadline_ns: int) -> None:
+        start = time.monotonic_ns()
+        sent = _send_ns(msg) or port.last_receive_ns
+        utime = _utime(msg)
+        if utime:
+            self.ctx.now_utime = utime
+        self.inbox._trigger = msg
+        self.node.tick(self.ctx, self.inbox)
+        end = time.monotonic_ns()
+        self.timer.last_utime = self.ctx.now_utime
+        missed = deadline_ns > 0 and end - sent > deadline_ns
+        self.timer.record(start, end, start - sent, end - sent, missed)

@@ -1,0 +1,79 @@
+"""The Node contract: an algorithm wired to named ports, with no LCM or sockets inside.
+
+A node declares its input and output ports by role (``"state"``, ``"torque"``), how it is driven
+(by each or by the newest message of one input, or periodically), and a ``tick``. The same node
+object runs live (``runtime.loops``: LCM and UDP, wall clock) and inside the deterministic harness
+(``runtime.harness``: sim-time order, no transport) -- the way a Drake diagram runs both ways.
+Which channel a role is bound to lives in ``hw_config``, not in the node.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Literal, Protocol
+
+#: A port's payload type: an lcm-gen message class, or ``bytes`` for a raw UDP datagram.
+PortType = type
+
+TriggerPolicy = Literal["newest", "each"]
+
+
+class Context(Protocol):
+    """What a node may do from ``setup`` and ``tick``: publish and read the sim clock."""
+
+    def publish(self, role: str, msg: Any) -> None:
+        """Send ``msg`` on the output ``role``. LCM messages get ``header.seq``,
+        ``header.send_mono_ns`` and ``header.source`` filled in; the node sets ``header.utime``."""
+
+    @property
+    def now_utime(self) -> int:
+        """Sim time (us) of this tick: the scheduled time of a periodic tick, else the
+        ``header.utime`` of the driving message (0 for raw bytes)."""
+
+
+class Inbox(Protocol):
+    """The node's view of its inputs at a tick."""
+
+    def latest(self, role: str) -> Any | None:
+        """Newest message received on ``role`` so far (decoded), or None if none yet."""
+
+    def is_fresh(self, role: str) -> bool:
+        """True when ``role`` received something since this node's previous tick."""
+
+    def trigger(self) -> Any | None:
+        """The message that caused this tick (message-driven nodes), else None."""
+
+
+class Node:
+    """Base class for every process's algorithm shell.
+
+    Subclasses set the class attributes and override ``tick`` (and optionally ``setup`` and
+    ``close``). ``period_s`` is filled in from the rate in ``hw_config`` for periodic nodes.
+    """
+
+    name: str = "node"
+    #: role -> payload type (lcm class, or ``bytes`` for UDP); set as class attributes
+    inputs: Mapping[str, PortType] = {}
+    outputs: Mapping[str, PortType] = {}
+    #: input role that drives the node; None means periodic at ``period_s``
+    trigger_role: str | None = None
+    #: "newest": tick once on the newest message, skipping stale ones (control loops);
+    #: "each": tick once per message, in order (e.g. integrating every IMU packet)
+    trigger_policy: TriggerPolicy = "newest"
+    #: set by the runner from ``hw_config`` (rate_hz, deadline_ms) before ``setup``
+    period_s: float | None = None
+    deadline_s: float | None = None
+
+    def setup(self, ctx: Context) -> None:
+        """Called once before the first tick."""
+
+    def tick(self, ctx: Context, inbox: Inbox) -> None:  # pragma: no cover - abstract
+        """One step of the algorithm: read ``inbox``, ``ctx.publish`` the outputs."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Called once at shutdown; release sockets, files, threads."""
+
+    def status(self) -> str:
+        """A short human-readable status line for the supervisor and logs."""
+        return "ok"

@@ -1,0 +1,471 @@
+"""The supervisor behind ``cassie launch``: starts a profile's processes and keeps them alive.
+
+* Start in dependency order; a process is ready when its first message appears on its ready
+  channel (by default its first LCM output) within its timeout.
+* Each child runs in its own process group (and dies with the supervisor through
+  ``PR_SET_PDEATHSIG``); one log file per process.
+* A child that exits is restarted per its policy with exponential backoff; more than
+  ``max_restarts`` within ``window_s`` puts it in ``crash_loop`` (given up, failed).
+* SIGINT/SIGTERM (or ``--duration``) shuts down in reverse order, escalating
+  SIGINT -> SIGTERM -> SIGKILL on each process group, so no orphan is left behind.
+* Status: a live table on the terminal, and the full state on LCM at 1 Hz, procman-style.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+import psutil
+
+from lcmtypes import loop_timing_t, process_status_t, supervisor_orders_t, supervisor_status_t
+from runtime.bus import Bus
+from runtime.config import check_depends
+from runtime.config_types import ProcessConfig, Profile
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+FAILED_STATES = ("failed", "crash_loop")
+_PR_SET_PDEATHSIG = 1
+
+
+def _child_preexec() -> None:  # runs in the child between fork and exec
+    os.setpgid(0, 0)
+    try:
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+
+
+@dataclass
+class Child:
+    """The supervisor's record of one process."""
+
+    proc: ProcessConfig
+    state: str = "stopped"
+    popen: subprocess.Popen[bytes] | None = None
+    restarts: int = 0
+    restart_times: deque[float] = field(default_factory=deque)
+    exit_code: int = 0
+    next_start_at: float = 0.0
+    started_at: float = 0.0
+    ready_at: float = 0.0
+    backoff_s: float = 0.0
+    log_path: Path | None = None
+    log_file: IO[bytes] | None = None
+    ps: psutil.Process | None = None
+    cpu_percent: float = 0.0
+    rss_mb: float = 0.0
+    loop_rate_hz: float = 0.0
+    deadline_misses: int = 0
+    last_msg_ns: int = 0
+    affinity: str = "not requested"
+    priority: str = "not requested"
+    detail: str = ""
+    ever_failed: bool = False
+
+    @property
+    def pid(self) -> int:
+        return self.popen.pid if self.popen is not None else 0
+
+    def alive(self) -> bool:
+        return self.popen is not None and self.popen.poll() is None
+
+
+class Supervisor:
+    """Runs a launch profile; see the module docstring."""
+
+    def __init__(
+        self,
+        profile: Profile,
+        log_dir: Path | None = None,
+        duration_s: float | None = None,
+        out: IO[str] | None = None,
+        live_table: bool | None = None,
+        extra_args: list[str] | None = None,
+        shutdown_grace_s: tuple[float, float] = (3.0, 2.0),
+    ) -> None:
+        self.profile = profile
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        self.log_dir = Path(log_dir) if log_dir else REPO_ROOT / "logs" / f"{stamp}-{profile.name}"
+        self.duration_s = duration_s
+        self.out = out or sys.stdout
+        self.live_table = self.out.isatty() if live_table is None else live_table
+        self.extra_args = extra_args or []
+        self.grace = shutdown_grace_s
+        self.order = check_depends(profile)
+        self.children = {name: Child(profile.processes[name]) for name in self.order}
+        self.state = "starting"
+        self.t0 = time.monotonic()
+        self._stop_requested = False
+        self._status_seq = 0
+        self.bus = Bus(profile.lcm_url, source="supervisor", recv_buf_size=8 << 20)
+        self._channel_owner: dict[str, str] = {}
+        for name, child in self.children.items():
+            ch = child.proc.ready_channel
+            if ch is not None and not ch.is_udp:
+                self._channel_owner[ch.name] = name
+                self.bus.subscribe_raw(_regex(ch.name), self._on_output)
+        self.bus.subscribe_raw(_regex(profile.timing_channel), self._on_timing)
+        self.bus.subscribe_raw(_regex(profile.orders_channel), self._on_order)
+
+    # -- bus callbacks -------------------------------------------------------------------------
+    def _on_output(self, channel: str, _data: bytes) -> None:
+        child = self.children.get(self._channel_owner.get(channel, ""))
+        if child is not None:
+            child.last_msg_ns = time.monotonic_ns()
+
+    def _on_timing(self, _channel: str, data: bytes) -> None:
+        try:
+            msg = loop_timing_t.decode(data)
+        except Exception:
+            return
+        child = self.children.get(msg.process)
+        if child is not None:
+            child.loop_rate_hz = msg.rate_hz
+            child.deadline_misses = msg.deadline_misses_total
+
+    def _on_order(self, _channel: str, data: bytes) -> None:
+        try:
+            msg = supervisor_orders_t.decode(data)
+        except Exception:
+            return
+        targets = list(self.children) if msg.process == "*" else [msg.process]
+        for name in targets:
+            child = self.children.get(name)
+            if child is None:
+                continue
+            if msg.order == "stop":
+                self._stop_child(child)
+                child.state = "stopped"
+            elif msg.order in ("start", "restart"):
+                if msg.order == "restart":
+                    self._stop_child(child)
+                child.restart_times.clear()
+                self._start_child(child)
+
+    # -- process control -----------------------------------------------------------------------
+    def _command(self, child: Child) -> list[str]:
+        return [
+            sys.executable,
+            "-m",
+            "tools.cli",
+            "run",
+            child.proc.name,
+            "--profile",
+            str(self.profile.path),
+            *self.extra_args,
+        ]
+
+    def _start_child(self, child: Child) -> None:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        child.log_path = self.log_dir / f"{child.proc.name}.log"
+        if child.log_file is None:
+            child.log_file = open(child.log_path, "ab", buffering=0)  # noqa: SIM115
+        child.log_file.write(
+            f"\n=== start {time.strftime('%H:%M:%S')} (restart {child.restarts}) ===\n".encode()
+        )
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT), env.get("PYTHONPATH", "")]).rstrip(
+            os.pathsep
+        )
+        env["CASSIE_LCM_URL"] = self.profile.lcm_url
+        env["PYTHONUNBUFFERED"] = "1"
+        env["CASSIE_SUPERVISED"] = "1"
+        child.popen = subprocess.Popen(
+            self._command(child),
+            stdout=child.log_file,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            cwd=str(REPO_ROOT),
+            env=env,
+            preexec_fn=_child_preexec,
+        )
+        child.state = "starting"
+        child.started_at = time.monotonic()
+        child.ready_at = 0.0
+        child.last_msg_ns = 0
+        child.detail = ""
+        try:
+            child.ps = psutil.Process(child.popen.pid)
+            child.ps.cpu_percent(None)
+        except psutil.Error:
+            child.ps = None
+        self._apply_scheduling(child)
+
+    def _apply_scheduling(self, child: Child) -> None:
+        """CPU affinity and nice value, best-effort; the status says whether each took."""
+        pid = child.pid
+        if child.proc.cpu_affinity:
+            try:
+                os.sched_setaffinity(pid, child.proc.cpu_affinity)
+                child.affinity = f"applied {list(child.proc.cpu_affinity)}"
+            except OSError as exc:
+                child.affinity = f"failed: {exc.strerror}"
+        if child.proc.nice is not None:
+            try:
+                os.setpriority(os.PRIO_PROCESS, pid, child.proc.nice)
+                child.priority = f"applied nice {child.proc.nice}"
+            except OSError as exc:
+                child.priority = f"failed: {exc.strerror}"
+
+    def _signal_group(self, child: Child, sig: int) -> None:
+        if child.popen is None:
+            return
+        try:
+            os.killpg(child.popen.pid, sig)
+        except ProcessLookupError:
+            pass
+
+    def _stop_child(self, child: Child) -> None:
+        """SIGINT, then SIGTERM, then SIGKILL to the child's process group."""
+        if child.popen is None:
+            return
+        child.state = "stopping"
+        for sig, wait_s in (
+            (signal.SIGINT, self.grace[0]),
+            (signal.SIGTERM, self.grace[1]),
+            (signal.SIGKILL, 2.0),
+        ):
+            if child.popen.poll() is not None:
+                break
+            self._signal_group(child, sig)
+            try:
+                child.popen.wait(timeout=wait_s)
+            except subprocess.TimeoutExpired:
+                child.detail = f"did not stop on {signal.Signals(sig).name}"
+                continue
+        # the leader is gone; sweep any stragglers left in its group
+        self._signal_group(child, signal.SIGKILL)
+        child.exit_code = child.popen.returncode if child.popen.returncode is not None else 0
+        child.popen = None
+        child.ps = None
+
+    # -- the main loop -------------------------------------------------------------------------
+    def request_stop(self, *_: object) -> None:
+        self._stop_requested = True
+
+    def run(self) -> int:
+        """Start everything, supervise until stopped, shut down; exit code 0 when all is well."""
+        old = {s: signal.signal(s, self.request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            ok = self._start_all()
+            self.state = "running" if ok else "stopping"
+            last_status = 0.0
+            last_table = 0.0
+            while ok and not self._stop_requested:
+                self.bus.drain(0.05)
+                now = time.monotonic()
+                self._supervise(now)
+                if now - last_status >= 1.0:
+                    self.publish_status()
+                    last_status = now
+                if now - last_table >= (0.5 if self.live_table else 5.0):
+                    self._print_table(live=self.live_table)
+                    last_table = now
+                if self.duration_s is not None and now - self.t0 >= self.duration_s:
+                    break
+                if self._required_failed():
+                    self.out.write("a required process failed; shutting down\n")
+                    break
+        finally:
+            self.state = "stopping"
+            self._shutdown()
+            self.state = "stopped"
+            self.publish_status()
+            for s, h in old.items():
+                signal.signal(s, h)
+        self._print_summary()
+        return 1 if self._required_failed() else 0
+
+    def _required_failed(self) -> bool:
+        return any(
+            c.proc.required and (c.state in FAILED_STATES or c.ever_failed)
+            for c in self.children.values()
+        )
+
+    def _start_all(self) -> bool:
+        for name in self.order:
+            child = self.children[name]
+            self._start_child(child)
+            if not self._wait_ready(child):
+                return False
+        return True
+
+    def _wait_ready(self, child: Child) -> bool:
+        deadline = time.monotonic() + child.proc.ready_timeout_s
+        while time.monotonic() < deadline and not self._stop_requested:
+            self.bus.drain(0.02)
+            if child.popen is not None and child.popen.poll() is not None:
+                child.detail = f"exited with {child.popen.returncode} before it was ready"
+                child.exit_code = child.popen.returncode
+                child.state = "failed"
+                child.ever_failed = True
+                return not child.proc.required
+            no_channel = child.proc.ready_channel is None or child.proc.ready_channel.is_udp
+            if child.last_msg_ns or (no_channel and time.monotonic() - child.started_at > 0.5):
+                child.state = "ready"
+                child.ready_at = time.monotonic()
+                return True
+        if self._stop_requested:
+            return False
+        ch = child.proc.ready_channel
+        child.detail = (
+            f"no message on {ch.name if ch else '?'} within {child.proc.ready_timeout_s:.1f} s"
+        )
+        child.state = "failed"
+        child.ever_failed = True
+        return not child.proc.required
+
+    def _supervise(self, now: float) -> None:
+        for child in self.children.values():
+            if child.state in ("starting", "ready") and child.popen is not None:
+                code = child.popen.poll()
+                if child.state == "starting" and child.last_msg_ns:
+                    child.state, child.ready_at = "ready", now
+                if code is not None:
+                    self._on_exit(child, code, now)
+            elif child.state == "backoff" and now >= child.next_start_at:
+                self._start_child(child)
+            self._sample_resources(child)
+
+    def _on_exit(self, child: Child, code: int, now: float) -> None:
+        # The leader is gone; whatever it left in its process group goes with it.
+        self._signal_group(child, signal.SIGKILL)
+        child.exit_code = code
+        child.popen = None
+        child.ps = None
+        policy = child.proc.restart
+        how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exited with {code}"
+        if policy.policy == "never" or (policy.policy == "on-failure" and code == 0):
+            child.state = "exited" if code == 0 else "failed"
+            child.ever_failed = child.ever_failed or code != 0
+            child.detail = how
+            return
+        while child.restart_times and now - child.restart_times[0] > policy.window_s:
+            child.restart_times.popleft()
+        if len(child.restart_times) >= policy.max_restarts:
+            child.state = "crash_loop"
+            child.ever_failed = True
+            child.detail = (
+                f"{how}; {len(child.restart_times)} restarts within "
+                f"{policy.window_s:.0f} s: giving up"
+            )
+            return
+        child.restart_times.append(now)
+        child.restarts += 1
+        n = len(child.restart_times)
+        child.backoff_s = min(policy.backoff_initial_s * 2 ** (n - 1), policy.backoff_max_s)
+        child.next_start_at = now + child.backoff_s
+        child.state = "backoff"
+        child.detail = f"{how}; restart in {child.backoff_s:.1f} s"
+
+    def _sample_resources(self, child: Child) -> None:
+        if child.ps is None:
+            child.cpu_percent = child.rss_mb = 0.0
+            return
+        try:
+            with child.ps.oneshot():
+                child.cpu_percent = child.ps.cpu_percent(None)
+                child.rss_mb = child.ps.memory_info().rss / 2**20
+        except psutil.Error:
+            child.cpu_percent = child.rss_mb = 0.0
+
+    def _shutdown(self) -> None:
+        for name in reversed(self.order):
+            child = self.children[name]
+            if child.popen is not None:
+                was = child.state
+                self._stop_child(child)
+                child.state = "stopped" if was not in FAILED_STATES else was
+            elif child.state in ("backoff", "starting", "ready"):
+                child.state = "stopped"
+            if child.log_file is not None:
+                child.log_file.close()
+                child.log_file = None
+
+    # -- reporting -----------------------------------------------------------------------------
+    def status_message(self) -> supervisor_status_t:
+        msg = supervisor_status_t()
+        msg.profile = self.profile.name
+        msg.state = self.state
+        msg.uptime_s = time.monotonic() - self.t0
+        now_ns = time.monotonic_ns()
+        for child in self.children.values():
+            p = process_status_t()
+            p.name = child.proc.name
+            p.host = child.proc.host
+            p.state = child.state
+            p.required = child.proc.required
+            p.pid = child.pid
+            p.restarts = child.restarts
+            p.exit_code = child.exit_code
+            p.cpu_percent = child.cpu_percent
+            p.rss_mb = child.rss_mb
+            p.loop_rate_hz = child.loop_rate_hz
+            p.deadline_misses = child.deadline_misses
+            p.last_message_age_s = (now_ns - child.last_msg_ns) / 1e9 if child.last_msg_ns else -1.0
+            p.affinity = child.affinity
+            p.priority = child.priority
+            p.detail = child.detail
+            msg.processes.append(p)
+        msg.num_processes = len(msg.processes)
+        return msg
+
+    def publish_status(self) -> None:
+        try:
+            self.bus.publish(self.profile.status_channel, self.status_message())
+        except OSError:
+            pass
+
+    def table(self) -> str:
+        rows = [
+            f"{'process':<16}{'state':<11}{'pid':>7}{'rst':>4}{'cpu%':>7}{'MB':>7}"
+            f"{'Hz':>9}{'miss':>7}{'age s':>8}  detail"
+        ]
+        now_ns = time.monotonic_ns()
+        for c in self.children.values():
+            age = f"{(now_ns - c.last_msg_ns) / 1e9:.2f}" if c.last_msg_ns else "-"
+            rows.append(
+                f"{c.proc.name:<16}{c.state:<11}{c.pid or '-':>7}{c.restarts:>4}"
+                f"{c.cpu_percent:>7.1f}{c.rss_mb:>7.0f}{c.loop_rate_hz:>9.1f}"
+                f"{c.deadline_misses:>7}{age:>8}  {c.detail}"
+            )
+        return "\n".join(rows)
+
+    def _print_table(self, live: bool) -> None:
+        text = f"[{self.profile.name}] {self.state}, up {time.monotonic() - self.t0:.0f} s\n"
+        text += self.table() + "\n"
+        if live:
+            self.out.write("\x1b[H\x1b[J" + text)
+        else:
+            self.out.write(text)
+        self.out.flush()
+
+    def _print_summary(self) -> None:
+        self.out.write(
+            f"\nsummary of profile {self.profile.name} after "
+            f"{time.monotonic() - self.t0:.1f} s (logs in {self.log_dir}):\n"
+        )
+        self.out.write(self.table() + "\n")
+        bad = [
+            c.proc.name
+            for c in self.children.values()
+            if c.proc.required and (c.state in FAILED_STATES or c.ever_failed)
+        ]
+        self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")
+        self.out.flush()
+
+
+def _regex(channel: str) -> str:
+    import re
+
+    return re.escape(channel)
