@@ -1,0 +1,79 @@
+"""Shared fixtures: an isolated LCM bus per test, and helpers to run real processes."""
+
+from __future__ import annotations
+
+import os
+import random
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+PROFILES = REPO / "tests" / "profiles"
+
+if not os.environ.get("MENAGERIE_ROOT"):
+    shared = REPO.parent / "shared" / "menagerie"
+    if shared.is_dir():
+        os.environ["MENAGERIE_ROOT"] = str(shared)
+
+
+@pytest.fixture
+def lcm_url(monkeypatch: pytest.MonkeyPatch) -> str:
+    """A multicast port of this test's own, so concurrent runs and tests never hear each other."""
+    url = f"udpm://239.255.76.67:{random.randint(20000, 60000)}"
+    monkeypatch.setenv("CASSIE_LCM_URL", url)
+    return url
+
+
+def cassie(*args: str, env: dict[str, str] | None = None, **kw: Any) -> subprocess.Popen[str]:
+    """Start ``cassie ARGS`` as a real child process (its own process group)."""
+    e = dict(os.environ)
+    e["PYTHONPATH"] = os.pathsep.join([str(REPO), e.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    e.update(env or {})
+    return subprocess.Popen(
+        [sys.executable, "-m", "tools.cli", *args],
+        cwd=REPO,
+        env=e,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+        **kw,
+    )
+
+
+def wait_for(
+    pred: Callable[[], bool],
+    timeout: float,
+    poll: Callable[[], object] | None = None,
+    what: str = "condition",
+) -> None:
+    """Poll until ``pred()`` holds, calling ``poll`` (e.g. a bus drain) in between."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if poll is not None:
+            poll()
+        else:
+            time.sleep(0.02)
+        if pred():
+            return
+    raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
+
+
+@pytest.fixture
+def procs() -> Iterator[list[subprocess.Popen[str]]]:
+    """Processes a test started; killed (whole group) at teardown whatever happened."""
+    started: list[subprocess.Popen[str]] = []
+    yield started
+    for p in started:
+        if p.poll() is None:
+            try:
+                os.killpg(p.pid, 9)
+            except ProcessLookupError:
+                pass
+            p.wait(timeout=5)

@@ -1,0 +1,108 @@
+"""hw_config is validated at load time; every error names the file, the key and what is allowed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from runtime.config import HW_CONFIG_DIR, check_depends, load_profile
+from runtime.errors import ConfigError
+from tests.conftest import PROFILES
+
+BASE = PROFILES / "runtime.yaml"
+
+
+def _profile(tmp_path: Path, body: str) -> Path:
+    p = tmp_path / "bad.yaml"
+    p.write_text(f"include: [{BASE}]\nlaunch: [ticker]\n" + body)
+    return p
+
+
+@pytest.mark.parametrize(
+    ("body", "key", "fragment"),
+    [
+        ("overrides: {ticker: {rate_hz: fast}}", "overrides.ticker.rate_hz", "must be a number"),
+        ("overrides: {ticker: {rate_hz: -5}}", "overrides.ticker.rate_hz", "out of range"),
+        ("overrides: {ticker: {host: moon}}", "overrides.ticker.host", "allowed: nuc"),
+        (
+            "overrides: {ticker: {restart: {policy: sometimes}}}",
+            "overrides.ticker.restart.policy",
+            "allowed: always, on-failure, never",
+        ),
+        (
+            "overrides: {ticker: {outputs: {out: NOPE}}}",
+            "overrides.ticker.outputs.out",
+            "unknown channel",
+        ),
+        (
+            "overrides: {ticker: {cpu_affinity: [a]}}",
+            "overrides.ticker.cpu_affinity",
+            "list of CPU numbers",
+        ),
+        ("overrides: {ticker: {nice: 99}}", "overrides.ticker.nice", "allowed: [-20, 19]"),
+        ("overrides: {ticker: {colour: red}}", "overrides.ticker.colour", "unknown key"),
+        ("mode: turbo", "mode", "allowed: realtime, lockstep"),
+        ("overrides: {ghost: {rate_hz: 1}}", "overrides.ghost", "no such process"),
+    ],
+)
+def test_bad_value_fails_with_message_naming_file_and_key(tmp_path, body, key, fragment):
+    path = _profile(tmp_path, body)
+    with pytest.raises(ConfigError) as err:
+        load_profile(path)
+    text = str(err.value)
+    assert err.value.key == key
+    assert text.startswith(f"{path}: {key}: ")  # the value was written in the profile
+    assert key in text and fragment in text
+
+
+def test_error_in_an_included_file_names_that_file(tmp_path):
+    inc = tmp_path / "procs.yaml"
+    inc.write_text("processes:\n  extra: {host: nuc, module: tests.procs.ticker, rate_hz: zero}\n")
+    p = tmp_path / "top.yaml"
+    p.write_text(f"include: [{BASE}, procs.yaml]\nlaunch: [extra]\n")
+    with pytest.raises(ConfigError) as err:
+        load_profile(p)
+    assert err.value.file == str(inc)
+    assert err.value.key == "processes.extra.rate_hz"
+
+
+def test_unknown_launch_entry_lists_allowed_processes(tmp_path):
+    p = tmp_path / "x.yaml"
+    p.write_text(f"include: [{BASE}]\nlaunch: [tickr]\n")
+    with pytest.raises(
+        ConfigError, match=r"launch\[0\]: no process named 'tickr'.*allowed: .*ticker"
+    ):
+        load_profile(p)
+
+
+def test_dependency_cycle_is_reported(tmp_path):
+    p = tmp_path / "x.yaml"
+    p.write_text(
+        f"include: [{BASE}]\nlaunch: [ticker, echo]\n"
+        "overrides: {ticker: {depends_on: [echo]}}\n"
+    )
+    with pytest.raises(ConfigError, match="dependency cycle"):
+        check_depends(load_profile(p))
+
+
+def test_good_profile_loads_with_channels_ttl_and_dependency_order():
+    prof = load_profile(BASE)
+    echo = prof.processes["echo"]
+    assert echo.inputs["in"].name == "TEST_TICK"
+    assert echo.depends_on == ("ticker",)
+    assert check_depends(prof) == ["ticker", "echo"]
+    assert prof.channels["tick"].ttl == 0
+
+
+def test_product_config_files_are_valid():
+    from runtime.config import _channel, load_yaml
+
+    chans = load_yaml(HW_CONFIG_DIR / "channels.yaml")["channels"]
+    parsed = {k: _channel(k, v, HW_CONFIG_DIR / "channels.yaml") for k, v in chans.items()}
+    assert parsed["network_state"].ttl == 1 and parsed["state"].ttl == 0
+    assert parsed["robot_output"].udp == ("127.0.0.1", 25000)
+    for profile in HW_CONFIG_DIR.glob("*.yaml"):
+        if "launch" in load_yaml(profile):
+            prof = load_profile(profile)
+            assert prof.launch

@@ -1,0 +1,145 @@
+"""The supervisor with real processes: restart after SIGKILL, crash loops, clean shutdown."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+
+import psutil
+
+from lcmtypes import supervisor_status_t
+from runtime.bus import Bus
+from tests.conftest import PROFILES, cassie, wait_for
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+def test_supervisor_restarts_killed_child_marks_crash_loop_and_leaves_no_orphans(
+    lcm_url, procs, tmp_path: Path
+):
+    grandchild_file = tmp_path / "grandchild.pid"
+    profile = tmp_path / "profile.yaml"
+    profile.write_text(
+        f"include: [{PROFILES / 'supervised.yaml'}]\n"
+        "profile: supervised_test\n"
+        "launch: [ticker, echo, crasher]\n"
+        f"overrides: {{ticker: {{params: {{grandchild_pid_file: '{grandchild_file}'}}}}}}\n"
+    )
+    bus = Bus(lcm_url, source="test")
+    status = bus.subscribe("SUPERVISOR_STATUS", supervisor_status_t)
+    sup = cassie("launch", str(profile), "--no-live", "--log-dir", str(tmp_path / "logs"))
+    procs.append(sup)
+
+    def by_name() -> dict[str, object]:
+        msg = status.peek()
+        return {p.name: p for p in msg.processes} if msg is not None else {}
+
+    def poll() -> None:
+        bus.drain(0.1)
+        status.latest()
+
+    wait_for(
+        lambda: (
+            by_name().get("echo") is not None
+            and by_name()["echo"].state == "ready"
+            and by_name()["ticker"].state == "ready"
+        ),
+        30,
+        poll=poll,
+        what="ticker and echo ready",
+    )
+    first_pid = by_name()["ticker"].pid
+    seen_pids = {p.pid for p in by_name().values() if p.pid}
+    assert grandchild_file.exists()
+    grandchild = int(grandchild_file.read_text())
+    assert _alive(first_pid) and _alive(grandchild)
+
+    # 1. SIGKILL a child: the supervisor restarts it (new pid, restarts == 1, ready again).
+    os.kill(first_pid, signal.SIGKILL)
+    wait_for(
+        lambda: (
+            by_name()["ticker"].restarts == 1
+            and by_name()["ticker"].state == "ready"
+            and by_name()["ticker"].pid != first_pid
+        ),
+        20,
+        poll=poll,
+        what="ticker restarted",
+    )
+    seen_pids |= {p.pid for p in by_name().values() if p.pid}
+
+    # 2. A child that fails every time ends in crash_loop after max_restarts (2) restarts.
+    wait_for(
+        lambda: by_name()["crasher"].state == "crash_loop",
+        30,
+        poll=poll,
+        what="crasher in crash_loop",
+    )
+    crasher = by_name()["crasher"]
+    assert crasher.restarts == 2
+    assert crasher.exit_code == 3
+    assert "giving up" in crasher.detail
+    # the healthy ones are untouched
+    assert by_name()["echo"].state == "ready" and by_name()["echo"].restarts == 0
+    grandchild2 = int(grandchild_file.read_text())
+    seen_pids |= {p.pid for p in by_name().values() if p.pid}
+    seen_pids |= {grandchild, grandchild2}
+
+    # 3. SIGINT: everything shuts down in reverse order and no process is left behind.
+    os.kill(sup.pid, signal.SIGINT)
+    out, _ = sup.communicate(timeout=30)
+    assert sup.returncode == 0, out  # crasher is not required, so the launch itself is ok
+    assert "summary of profile supervised_test" in out
+    time.sleep(0.2)
+    leftovers = [pid for pid in seen_pids if _alive(pid)]
+    assert leftovers == [], f"orphans left behind: {leftovers}"
+    # ...and the last status message says so.
+    bus.drain(0.5)
+    final = status.latest()
+    assert final.state in ("stopping", "stopped")
+
+
+def test_duration_run_exits_nonzero_when_a_required_process_fails(lcm_url, procs, tmp_path):
+    profile = tmp_path / "profile.yaml"
+    profile.write_text(
+        f"include: [{PROFILES / 'runtime.yaml'}]\n"
+        "profile: required_failure\n"
+        "launch: [ticker, crasher]\n"
+        "overrides: {crasher: {required: true, restart: {max_restarts: 1}}}\n"
+    )
+    sup = cassie(
+        "launch", str(profile), "--no-live", "--duration", "20", "--log-dir", str(tmp_path / "logs")
+    )
+    procs.append(sup)
+    out, _ = sup.communicate(timeout=60)
+    assert sup.returncode == 1, out
+    assert "FAILED (crasher)" in out
+    assert "failing on purpose" in (tmp_path / "logs" / "crasher.log").read_text()
+
+
+def test_duration_run_prints_summary_and_exits_zero(lcm_url, procs, tmp_path):
+    sup = cassie(
+        "launch",
+        str(PROFILES / "runtime.yaml"),
+        "--no-live",
+        "--duration",
+        "3",
+        "--log-dir",
+        str(tmp_path / "logs"),
+    )
+    procs.append(sup)
+    out, _ = sup.communicate(timeout=60)
+    assert sup.returncode == 0, out
+    assert "result: ok" in out
+    lines = {
+        line.split()[0]: line for line in out.splitlines() if line.startswith(("ticker", "echo"))
+    }
+    # the loop rate column comes from the processes' own TIMING messages
+    assert float(lines["ticker"].split()[6]) > 100.0

@@ -1,0 +1,1 @@
+"""User-facing programs: the `cassie` CLI, launcher, dashboard, reports and benchmarks."""

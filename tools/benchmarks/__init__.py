@@ -1,0 +1,1 @@
+"""Benchmarks run by `cassie bench NAME`; each module exposes `main(argv) -> int`."""

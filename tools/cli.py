@@ -1,0 +1,176 @@
+"""The ``cassie`` command: launch a profile, run one process, benchmarks, experiments, tools."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import os
+import sys
+from pathlib import Path
+
+from runtime.errors import BusError, ConfigError, MulticastRouteError
+
+BENCHMARKS = ("sim", "estimator", "mpfc", "osc", "s3", "lcm")
+
+
+def _cmd_launch(args: argparse.Namespace) -> int:
+    from runtime.config import load_profile
+    from runtime.supervisor import Supervisor
+
+    profile = load_profile(args.profile)
+    sup = Supervisor(
+        profile,
+        log_dir=Path(args.log_dir) if args.log_dir else None,
+        duration_s=args.duration,
+        live_table=False if args.no_live else None,
+    )
+    return sup.run()
+
+
+def apply_scheduling(proc: object) -> list[str]:
+    """CPU affinity and nice for this process, best-effort; returns what happened, per item."""
+    notes = []
+    aff = getattr(proc, "cpu_affinity", None)
+    if aff:
+        try:
+            os.sched_setaffinity(0, aff)
+            notes.append(f"cpu affinity {list(aff)}: applied")
+        except OSError as exc:
+            notes.append(f"cpu affinity {list(aff)}: failed ({exc.strerror})")
+    nice = getattr(proc, "nice", None)
+    if nice is not None:
+        try:
+            os.setpriority(os.PRIO_PROCESS, 0, nice)
+            notes.append(f"nice {nice}: applied")
+        except OSError as exc:
+            notes.append(f"nice {nice}: failed ({exc.strerror})")
+    return notes
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from runtime.config import load_profile
+    from runtime.loops import LiveRunner
+
+    profile = load_profile(args.profile)
+    if args.process not in profile.processes:
+        raise ConfigError(
+            str(profile.path),
+            "processes",
+            f"no process named {args.process!r}",
+            allowed=", ".join(sorted(profile.processes)),
+        )
+    proc = profile.processes[args.process]
+    log = logging.getLogger(proc.name)
+    if not os.environ.get("CASSIE_SUPERVISED"):  # under the supervisor, it applies them
+        for note in apply_scheduling(proc):
+            log.info(note)
+    module = importlib.import_module(proc.module)
+    if hasattr(module, "make_node"):
+        node = module.make_node(proc, profile)
+        log.info(
+            "%s: running %s (%s) on %s",
+            proc.name,
+            type(node).__name__,
+            proc.module,
+            profile.lcm_url,
+        )
+        return LiveRunner(node, proc, profile).run(duration_s=args.duration)
+    if hasattr(module, "main"):
+        return int(module.main(proc, profile) or 0)
+    raise ConfigError(
+        str(proc.source_file),
+        proc.key("module"),
+        f"module {proc.module} defines neither make_node(proc, profile) nor main(proc, profile)",
+    )
+
+
+def _cmd_bench(args: argparse.Namespace, rest: list[str]) -> int:
+    try:
+        module = importlib.import_module(f"tools.benchmarks.{args.name}")
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.endswith(args.name):
+            print(f"benchmark {args.name!r} is not built yet", file=sys.stderr)
+            return 2
+        raise
+    return int(module.main(rest) or 0)
+
+
+def _cmd_module(module_name: str, rest: list[str]) -> int:
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name == module_name:
+            print(f"`cassie {module_name.rsplit('.', 1)[-1]}` is not built yet", file=sys.stderr)
+            return 2
+        raise
+    return int(module.main(rest) or 0)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="cassie", description=__doc__)
+    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    launch = sub.add_parser("launch", help="run a launch profile under the supervisor")
+    launch.add_argument("profile", help="profile name or path, e.g. hw_config/sim.yaml")
+    launch.add_argument(
+        "--duration", type=float, default=None, help="run for S seconds, print a summary and exit"
+    )
+    launch.add_argument("--log-dir", default=None, help="folder for per-process logs")
+    launch.add_argument(
+        "--no-live",
+        action="store_true",
+        help="print the status table as lines instead of redrawing it",
+    )
+
+    run = sub.add_parser("run", help="run one process alone with a profile's settings")
+    run.add_argument("process")
+    run.add_argument("--profile", required=True)
+    run.add_argument("--duration", type=float, default=None)
+
+    bench = sub.add_parser("bench", help="a benchmark: " + ", ".join(BENCHMARKS))
+    bench.add_argument("name", choices=BENCHMARKS)
+
+    sub.add_parser(
+        "experiment", help="a closed-loop experiment in the deterministic harness", add_help=False
+    )
+    sub.add_parser("dashboard", help="the Rerun dashboard", add_help=False)
+    sub.add_parser("report", help="timing report from an LCM log", add_help=False)
+    sub.add_parser("command", help="send a velocity command (the radio)", add_help=False)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args, rest = parser.parse_known_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO,
+        format="%(asctime)s %(name)s %(levelname)s: %(message)s",
+    )
+    try:
+        if args.command == "bench":
+            return _cmd_bench(args, rest)
+        if args.command in ("experiment", "dashboard", "report", "command"):
+            return _cmd_module(f"tools.{args.command}", rest)
+        if rest:
+            parser.error(f"unrecognized arguments: {' '.join(rest)}")
+        if args.command == "launch":
+            return _cmd_launch(args)
+        return _cmd_run(args)
+    except ConfigError as exc:
+        print(f"config error: {exc}", file=sys.stderr)
+        return 2
+    except MulticastRouteError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 3
+    except BusError as exc:
+        print(f"bus error: {exc}", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
