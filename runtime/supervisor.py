@@ -29,7 +29,7 @@ import psutil
 from lcmtypes import loop_timing_t, process_status_t, supervisor_orders_t, supervisor_status_t
 from runtime.bus import Bus
 from runtime.config import check_depends
-from runtime.config_types import ProcessConfig, Profile
+from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 FAILED_STATES = ("failed", "crash_loop")
@@ -71,6 +71,7 @@ class Child:
     priority: str = "not requested"
     detail: str = ""
     ever_failed: bool = False
+    command: list[str] | None = None  # a helper program instead of `cassie run NAME`
 
     @property
     def pid(self) -> int:
@@ -92,6 +93,8 @@ class Supervisor:
         live_table: bool | None = None,
         extra_args: list[str] | None = None,
         shutdown_grace_s: tuple[float, float] = (3.0, 2.0),
+        log_lcm: bool = False,
+        dashboard: bool = False,
     ) -> None:
         self.profile = profile
         stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -103,6 +106,23 @@ class Supervisor:
         self.grace = shutdown_grace_s
         self.order = check_depends(profile)
         self.children = {name: Child(profile.processes[name]) for name in self.order}
+        if log_lcm:
+            self._add_helper(
+                "lcm_logger",
+                [
+                    _lcm_logger(),
+                    "--quiet",
+                    "--force",
+                    f"--lcm-url={profile.lcm_url}",
+                    str(self.log_dir / "lcm.log"),
+                ],
+                first=True,
+            )
+        if dashboard:
+            self._add_helper(
+                "dashboard",
+                [sys.executable, "-m", "tools.cli", "dashboard", "--profile", str(profile.path)],
+            )
         self.state = "starting"
         self.t0 = time.monotonic()
         self._stop_requested = False
@@ -116,6 +136,25 @@ class Supervisor:
                 self.bus.subscribe_raw(_regex(ch.name), self._on_output)
         self.bus.subscribe_raw(_regex(profile.timing_channel), self._on_timing)
         self.bus.subscribe_raw(_regex(profile.orders_channel), self._on_order)
+
+    def _add_helper(self, name: str, command: list[str], first: bool = False) -> None:
+        """A supporting program (logger, dashboard): supervised, never required, no readiness."""
+        proc = ProcessConfig(
+            name=name,
+            host="laptop",
+            module="",
+            source_file=self.profile.path,
+            required=False,
+            ready_channel=None,
+            restart=RestartPolicy(policy="on-failure", max_restarts=3),
+        )
+        child = Child(proc, command=command)
+        if first:
+            self.children = {name: child, **self.children}
+            self.order.insert(0, name)
+        else:
+            self.children[name] = child
+            self.order.append(name)
 
     # -- bus callbacks -------------------------------------------------------------------------
     def _on_output(self, channel: str, _data: bytes) -> None:
@@ -154,6 +193,8 @@ class Supervisor:
 
     # -- process control -----------------------------------------------------------------------
     def _command(self, child: Child) -> list[str]:
+        if child.command is not None:
+            return child.command
         return [
             sys.executable,
             "-m",
@@ -463,6 +504,14 @@ class Supervisor:
         ]
         self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")
         self.out.flush()
+
+
+def _lcm_logger() -> str:
+    """The lcm-logger that ships with the lcm package (beside this Python), else from PATH."""
+    import shutil
+
+    here = Path(sys.executable).parent / "lcm-logger"
+    return str(here) if here.exists() else (shutil.which("lcm-logger") or "lcm-logger")
 
 
 def _regex(channel: str) -> str:

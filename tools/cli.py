@@ -24,6 +24,8 @@ def _cmd_launch(args: argparse.Namespace) -> int:
         log_dir=Path(args.log_dir) if args.log_dir else None,
         duration_s=args.duration,
         live_table=False if args.no_live else None,
+        log_lcm=args.log,
+        dashboard=args.dashboard,
     )
     return sup.run()
 
@@ -118,6 +120,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--duration", type=float, default=None, help="run for S seconds, print a summary and exit"
     )
     launch.add_argument("--log-dir", default=None, help="folder for per-process logs")
+    launch.add_argument(
+        "--log",
+        action="store_true",
+        help="record every LCM message with lcm-logger into LOG_DIR/lcm.log",
+    )
+    launch.add_argument(
+        "--dashboard", action="store_true", help="start the Rerun dashboard with the stack"
+    )
     launch.add_argument(
         "--no-live",
         action="store_true",

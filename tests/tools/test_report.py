@@ -1,0 +1,53 @@
+"""`cassie launch --log` records the bus; `cassie report` turns the log into timing tables."""
+
+from __future__ import annotations
+
+import json
+
+from tests.conftest import PROFILES, cassie
+
+
+def test_report_of_a_logged_launch_prints_channels_loops_and_hops(lcm_url, procs, tmp_path):
+    logs = tmp_path / "logs"
+    sup = cassie(
+        "launch",
+        str(PROFILES / "runtime.yaml"),
+        "--duration",
+        "4",
+        "--no-live",
+        "--log",
+        "--log-dir",
+        str(logs),
+    )
+    procs.append(sup)
+    out, _ = sup.communicate(timeout=60)
+    assert sup.returncode == 0, out
+    assert (logs / "lcm.log").stat().st_size > 10_000
+    rep = cassie(
+        "report",
+        str(logs / "lcm.log"),
+        "--budgets",
+        str(PROFILES / "budgets.yaml"),
+        "--json",
+        str(tmp_path / "report.json"),
+        "--plots",
+        str(tmp_path / "plots"),
+    )
+    procs.append(rep)
+    text, _ = rep.communicate(timeout=120)
+    assert rep.returncode == 0, text
+    for heading in ("Channels", "Loops", "Hops", "TEST_TICK", "ticker/ticker", "tick -> echo"):
+        assert heading in text
+    fig = json.loads((tmp_path / "report.json").read_text())
+    assert fig["name"] == "report" and "machine" in fig
+    assert 150 < fig["channel_TEST_TICK_rate_hz"] < 230  # the ticker runs at 200 Hz
+    assert fig["hop_tick_echo_matched"] > 300
+    assert 0 < fig["hop_tick_echo_latency_p50_ms"] < fig["hop_tick_echo_latency_max_ms"]
+    assert fig["loop_ticker_ticker_ticks"] > 300
+    assert (tmp_path / "plots" / "loops_exec.png").exists()
+
+
+def test_report_on_missing_log_says_so(tmp_path):
+    p = cassie("report", str(tmp_path / "nope.lcm"))
+    out, _ = p.communicate(timeout=60)
+    assert p.returncode == 2 and "no such log file" in out
