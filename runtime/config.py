@@ -62,6 +62,7 @@ PROCESS_KEYS = {
     "params",
     "gains",
     "description",
+    "harness_delay_ms",
 }
 RESTART_KEYS = {"policy", "max_restarts", "window_s", "backoff_initial_s", "backoff_max_s"}
 MODES = ("realtime", "lockstep")
@@ -498,6 +499,7 @@ def _process(
         gc=ck.string(d, key, "gc", default="freeze", choices=("on", "freeze")),
         params=params,
         gains_file=gains_file,
+        harness_delay_ms=ck.number(d, key, "harness_delay_ms", default=0.0, lo=0.0, hi=1000.0),
     )
 
 

@@ -61,6 +61,7 @@ class ProcessConfig:
     gc: Literal["on", "freeze"] = "freeze"  # control loops freeze and disable the collector
     params: dict[str, Any] = field(default_factory=dict)  # free-form, validated by the process
     gains_file: Path | None = None
+    harness_delay_ms: float = 0.0  # modelled compute latency in the deterministic harness
 
     def key(self, *parts: str) -> str:
         """Dotted config key for error messages, e.g. ``processes.osc.params.kp``."""

@@ -11,12 +11,14 @@ way, exactly as on the bus, so a node cannot tell the difference (and cannot sha
 from __future__ import annotations
 
 import heapq
+import importlib
 import time
 from collections import defaultdict, deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from runtime.config_types import Profile
 from runtime.node import Node
 
 US = 1_000_000
@@ -157,6 +159,40 @@ class Harness:
     def close(self) -> None:
         for b in self.bindings:
             b.node.close()
+
+    @classmethod
+    def from_profile(cls, profile: Profile, names: list[str] | None = None) -> Harness:
+        """The profile's processes (or ``names``) built with their own ``make_node`` and bound to
+        the same channels as live, each with its configured ``harness_delay_ms``."""
+        bindings = []
+        for name in names or list(profile.launch):
+            proc = profile.processes[name]
+            module = importlib.import_module(proc.module)
+            if not hasattr(module, "make_node"):
+                raise ValueError(
+                    f"process {name} ({proc.module}) has no make_node(proc, profile) "
+                    "and cannot run in the harness"
+                )
+            node = module.make_node(proc, profile)
+            if node.trigger_role is None and node.period_s is None:
+                if not proc.rate_hz:
+                    raise ValueError(f"process {name} is periodic but has no rate_hz")
+                node.period_s = 1.0 / proc.rate_hz
+            if node.deadline_s is None and proc.deadline_ms is not None:
+                node.deadline_s = proc.deadline_ms / 1e3
+            bindings.append(
+                Binding(
+                    node,
+                    inputs={
+                        role: ch.name for role, ch in proc.inputs.items() if role in node.inputs
+                    },
+                    outputs={
+                        role: ch.name for role, ch in proc.outputs.items() if role in node.outputs
+                    },
+                    delay_us=round(proc.harness_delay_ms * 1000),
+                )
+            )
+        return cls(bindings)
 
     # -- internals -------------------------------------------------------------------------
     def _push(self, t: int, i: int, kind: str, payload: Any) -> None:

@@ -71,3 +71,17 @@ def test_messages_arrive_at_the_sim_time_they_were_sent_plus_modelled_delay():
     assert [t - u for t, u, *_ in delayed] == [1500] * len(delayed)
     # the echo of the last tick (at 1000 ms) lands at 1001.5 ms, past the horizon
     assert [x[2] for x in delayed] == [x[2] for x in log][:-1]
+
+
+def test_harness_builds_the_same_processes_as_a_launch_profile():
+    from runtime.config import load_profile
+    from tests.conftest import PROFILES
+
+    profile = load_profile(PROFILES / "runtime.yaml")
+    h = Harness.from_profile(profile)  # ticker (periodic, 200 Hz) -> echo (message-driven)
+    echoes: list[tuple[int, float]] = []
+    h.tap("TEST_ECHO", lambda t, m: echoes.append((t, m.vx)))
+    h.run_until(100_000)
+    h.close()
+    assert [t for t, _ in echoes] == list(range(0, 100_001, 5000))
+    assert [v for _, v in echoes] == [float(i) for i in range(21)]
