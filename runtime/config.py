@@ -231,13 +231,18 @@ def load_profile(path: str | Path) -> Profile:
     }
     lcm_url: tuple[str, Path] | None = None
     seen: list[Path] = []
+    stack: list[Path] = []
 
     def absorb(file: Path, data: dict[str, Any]) -> None:
         nonlocal lcm_url
         ck = _Checker(file)
-        if file in seen:
-            raise ck.fail("include", "files include each other in a cycle")
+        if file in stack:
+            chain = " -> ".join(p.name for p in [*stack, file])
+            raise ck.fail("include", f"files include each other in a cycle: {chain}")
+        if file in seen:  # included twice along different paths: once is enough
+            return
         seen.append(file)
+        stack.append(file)
         ck.known_keys(data, "", PROFILE_KEYS)
         includes = data.get("include", [])
         if not isinstance(includes, list) or not all(isinstance(x, str) for x in includes):
@@ -267,6 +272,7 @@ def load_profile(path: str | Path) -> Profile:
                 entries = ck.mapping(data[section], section)
                 for name, value in entries.items():
                     sections[section][str(name)] = (value, file)
+        stack.pop()
 
     data = load_yaml(path)
     absorb(path, data)
@@ -334,6 +340,10 @@ def load_profile(path: str | Path) -> Profile:
                 )
     sup = ck.mapping(data.get("supervisor") or {}, "supervisor")
     ck.known_keys(sup, "supervisor", {"status_channel", "orders_channel", "timing_channel"})
+    # Relative paths in params (terrains, ...) resolve against hw_config/ when the profile builds
+    # on the product configuration, else against the profile's own folder.
+    if any(HW_CONFIG_DIR.resolve() in f.parents for f in seen):
+        hw_dir = HW_CONFIG_DIR.resolve()
     return Profile(
         name=name,
         path=path,
@@ -472,7 +482,7 @@ def _process(
     gains = d.get("gains")
     gains_file = None
     if gains is not None:
-        gains_file = (hw_dir / ck.string(d, key, "gains")).resolve()
+        gains_file = (file.parent / ck.string(d, key, "gains")).resolve()
         if not gains_file.exists():
             raise ck.fail(
                 f"{key}.gains",

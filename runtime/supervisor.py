@@ -119,10 +119,13 @@ class Supervisor:
                 first=True,
             )
         if dashboard:
-            self._add_helper(
-                "dashboard",
-                [sys.executable, "-m", "tools.cli", "dashboard", "--profile", str(profile.path)],
-            )
+            # Started before the stack so it sees everything; it records headless into the log
+            # folder, and also opens a viewer where there is a display. It renices itself.
+            cmd = [sys.executable, "-m", "tools.cli", "dashboard", "--profile", str(profile.path),
+                   "--save", str(self.log_dir / "dashboard.rrd")]
+            if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+                cmd.append("--spawn")
+            self._add_helper("dashboard", cmd, first=True)
         self.state = "starting"
         self.t0 = time.monotonic()
         self._stop_requested = False

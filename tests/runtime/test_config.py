@@ -106,3 +106,13 @@ def test_product_config_files_are_valid():
         if "launch" in load_yaml(profile):
             prof = load_profile(profile)
             assert prof.launch
+
+
+def test_a_file_included_twice_is_fine_but_a_cycle_is_reported(tmp_path):
+    (tmp_path / "a.yaml").write_text(f"include: [{BASE}]\n")
+    (tmp_path / "b.yaml").write_text(f"include: [{BASE}, a.yaml]\nlaunch: [ticker]\n")
+    assert load_profile(tmp_path / "b.yaml").launch == ("ticker",)
+    (tmp_path / "c.yaml").write_text("include: [d.yaml]\n")
+    (tmp_path / "d.yaml").write_text("include: [c.yaml]\nlaunch: [ticker]\n")
+    with pytest.raises(ConfigError, match=r"cycle: d.yaml -> c.yaml -> d.yaml"):
+        load_profile(tmp_path / "d.yaml")
