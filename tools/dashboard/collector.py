@@ -1,0 +1,121 @@
+"""The LCM side of the dashboard: a thread that only files raw messages into bounded buffers.
+
+The collector never decodes anything: its LCM callback appends the bytes to the channel's
+buffer and returns, so the dashboard keeps up with the bus whatever Rerun is doing. Each
+channel's buffer holds at most ``capacity`` messages; when it is full the oldest message is
+dropped and counted, so a slow or stalled batcher costs a bounded amount of memory and never
+pushes back on the publishers. LCM's own per-subscription queue is bounded the same way.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+from collections import deque
+from dataclasses import dataclass
+
+from runtime.bus import Bus
+
+log = logging.getLogger(__name__)
+
+DEFAULT_RECV_BUF = 8 * 1024 * 1024
+
+
+@dataclass
+class ChannelStats:
+    """Counts for one channel since the collector started."""
+
+    received: int = 0
+    dropped: int = 0  # evicted from the full buffer before the batcher took them
+
+
+class Collector:
+    """Subscribes to ``capacities`` (channel name -> buffer size) and buffers raw messages."""
+
+    def __init__(
+        self,
+        url: str,
+        capacities: dict[str, int],
+        recv_buf_size: int | None = DEFAULT_RECV_BUF,
+        keep_bytes: dict[str, int] | None = None,
+    ) -> None:
+        """``keep_bytes`` (channel -> n) keeps only the first n bytes of that channel's
+        messages: enough for the header when the rest (a depth image) is never used."""
+        if any(c < 1 for c in capacities.values()):
+            raise ValueError(f"every buffer capacity must be >= 1, got {capacities}")
+        self.url = url
+        self.capacities = dict(capacities)
+        self.keep_bytes = dict(keep_bytes or {})
+        self._lock = threading.Lock()
+        self._buffers: dict[str, deque[bytes]] = {
+            ch: deque(maxlen=cap) for ch, cap in self.capacities.items()
+        }
+        self.stats: dict[str, ChannelStats] = {ch: ChannelStats() for ch in self.capacities}
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._bus = Bus(url, source="dashboard", recv_buf_size=recv_buf_size)
+        for ch, cap in self.capacities.items():
+            # LCM's queue for this subscription is bounded by the same capacity.
+            self._bus.subscribe_raw(re.escape(ch), self._on_message, lcm_queue=cap)
+
+    def _on_message(self, channel: str, data: bytes) -> None:
+        """LCM callback: file the bytes, evicting (and counting) the oldest when full."""
+        with self._lock:
+            buf = self._buffers.get(channel)
+            if buf is None:
+                return
+            st = self.stats[channel]
+            st.received += 1
+            if len(buf) == buf.maxlen:
+                st.dropped += 1
+            keep = self.keep_bytes.get(channel)
+            buf.append(data if keep is None else data[:keep])
+
+    def take(self) -> dict[str, list[bytes]]:
+        """Everything buffered since the last call, per channel, oldest first."""
+        out: dict[str, list[bytes]] = {}
+        with self._lock:
+            for ch, buf in self._buffers.items():
+                if buf:
+                    out[ch] = list(buf)
+                    buf.clear()
+        return out
+
+    def pending(self) -> dict[str, int]:
+        """Messages waiting in each buffer."""
+        with self._lock:
+            return {ch: len(buf) for ch, buf in self._buffers.items()}
+
+    def totals(self) -> tuple[int, int]:
+        """(received, dropped) over all channels."""
+        with self._lock:
+            return (
+                sum(s.received for s in self.stats.values()),
+                sum(s.dropped for s in self.stats.values()),
+            )
+
+    # -- thread ------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Start the receiving thread (a daemon: it never keeps the process alive)."""
+        if self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name="dashboard-lcm", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self._bus.drain(0.05)
+            except Exception:  # never let one bad message end the collection
+                log.exception("LCM receive failed")
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        """Stop the thread (waiting up to ``timeout_s``) and close the bus."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            if self._thread.is_alive():
+                log.warning("LCM thread did not stop within %.1f s; leaving it", timeout_s)
+                return
+        self._bus.close()
