@@ -86,6 +86,21 @@ def load_yaml(path: Path) -> dict[str, Any]:
     return data
 
 
+def process_gains(proc: ProcessConfig, default: Path, allow_params: bool = False) -> Path:
+    """The gains file of ``proc`` (absolute since load time), or ``default``. Processes whose
+    settings all live in their gains file pass ``allow_params=False``: any ``params`` key is
+    then an error that says where the settings belong."""
+    if not allow_params:
+        for key in proc.params:
+            raise ConfigError(
+                str(proc.source_file),
+                proc.key("params", key),
+                "unknown parameter",
+                "(none: this process's settings live in its gains file)",
+            )
+    return Path(proc.gains_file) if proc.gains_file is not None else default
+
+
 def find_profile(name_or_path: str) -> Path:
     """A profile by path, or by name in hw_config/ (``sim`` -> ``hw_config/sim.yaml``)."""
     p = Path(name_or_path)
@@ -232,6 +247,7 @@ def load_profile(path: str | Path) -> Profile:
     lcm_url: tuple[str, Path] | None = None
     seen: list[Path] = []
     stack: list[Path] = []
+    all_overrides: list[tuple[str, dict[str, Any], Path]] = []  # in include order, top last
 
     def absorb(file: Path, data: dict[str, Any]) -> None:
         nonlocal lcm_url
@@ -256,6 +272,9 @@ def load_profile(path: str | Path) -> Profile:
                     allowed=", ".join(sorted(p.name for p in file.parent.glob("*.yaml"))),
                 )
             absorb(inc_path, load_yaml(inc_path))
+        if "overrides" in data:
+            for pname, value in ck.mapping(data["overrides"] or {}, "overrides").items():
+                all_overrides.append((str(pname), ck.mapping(value, f"overrides.{pname}"), file))
         if "lcm" in data:
             lcm = ck.mapping(data["lcm"], "lcm")
             ck.known_keys(lcm, "lcm", {"url"})
@@ -297,11 +316,9 @@ def load_profile(path: str | Path) -> Profile:
         cname: _channel(cname, value, file) for cname, (value, file) in sections["channels"].items()
     }
 
-    overrides = data.get("overrides") or {}
-    ck.mapping(overrides, "overrides")
-    for pname in overrides:
+    for pname, _, ofile in all_overrides:
         if pname not in sections["processes"]:
-            raise ck.fail(
+            raise _Checker(ofile).fail(
                 f"overrides.{pname}",
                 "no such process",
                 allowed=", ".join(sorted(sections["processes"])),
@@ -309,14 +326,13 @@ def load_profile(path: str | Path) -> Profile:
     processes = {}
     for pname, (value, file) in sections["processes"].items():
         raw = _Checker(file).mapping(value, f"processes.{pname}")
-        override = None
-        if pname in overrides:
-            override = ck.mapping(overrides[pname], f"overrides.{pname}")
-            raw = _merge(raw, override)
+        mine = [(ov, ofile) for name, ov, ofile in all_overrides if name == pname]
+        for ov, _ in mine:
+            raw = _merge(raw, ov)
         try:
             processes[pname] = _process(pname, raw, file, hosts, channels, hw_dir)
         except ConfigError as exc:
-            raise _blame_override(exc, pname, override, path) from None
+            raise _blame_override(exc, pname, mine) from None
 
     launch = data.get("launch")
     if not isinstance(launch, list) or not launch or not all(isinstance(x, str) for x in launch):
@@ -362,20 +378,22 @@ def load_profile(path: str | Path) -> Profile:
 
 
 def _blame_override(
-    exc: ConfigError, pname: str, override: dict[str, Any] | None, profile_path: Path
+    exc: ConfigError, pname: str, overrides: list[tuple[dict[str, Any], Path]]
 ) -> ConfigError:
-    """Point an error at the profile's ``overrides`` entry when the value came from there."""
+    """Point an error at the ``overrides`` entry that set the value, when one did."""
     prefix = f"processes.{pname}."
-    if override is None or not exc.key.startswith(prefix):
+    if not exc.key.startswith(prefix):
         return exc
-    node: Any = override
-    for part in exc.key[len(prefix) :].split("."):
-        if not isinstance(node, dict) or part not in node:
-            return exc
-        node = node[part]
-    return ConfigError(
-        str(profile_path), f"overrides.{pname}." + exc.key[len(prefix) :], exc.problem, exc.allowed
-    )
+    rest = exc.key[len(prefix) :]
+    for override, ofile in reversed(overrides):
+        node: Any = override
+        for part in rest.split("."):
+            if not isinstance(node, dict) or part not in node:
+                break
+            node = node[part]
+        else:
+            return ConfigError(str(ofile), f"overrides.{pname}.{rest}", exc.problem, exc.allowed)
+    return exc
 
 
 def _channel(cname: str, value: Any, file: Path) -> ChannelConfig:

@@ -10,6 +10,7 @@ way, exactly as on the bus, so a node cannot tell the difference (and cannot sha
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import importlib
 import time
@@ -22,6 +23,8 @@ from runtime.config_types import Profile
 from runtime.node import Node
 
 US = 1_000_000
+#: more events than this at one sim instant means a zero-delay cycle that never advances time
+MAX_EVENTS_PER_INSTANT = 100_000
 
 
 @dataclass
@@ -83,7 +86,7 @@ class Harness:
     """Steps bound nodes in sim-time order; see the module docstring."""
 
     def __init__(self, bindings: list[Binding]) -> None:
-        self.bindings = bindings
+        self.bindings = list(bindings)
         self.now_us = 0
         self._events: list[tuple[int, int, int, str, Any]] = []  # (t, order, node, kind, payload)
         self._order = 0
@@ -97,22 +100,15 @@ class Harness:
         self.exec_ns: list[list[int]] = []
         self.published: dict[str, int] = defaultdict(int)
         for i, b in enumerate(bindings):
-            ports: dict[str, _Port] = {}
-            for role, typ in b.node.inputs.items():
-                if role not in b.inputs:
-                    raise KeyError(f"{b.node.name}: input role {role!r} is not bound to a channel")
-                policy = b.node.trigger_policy if role == b.node.trigger_role else "newest"
-                ports[role] = _Port(typ, policy)
-                self._subscribers[b.inputs[role]].append((i, role))
-            for role in b.node.outputs:
-                if role not in b.outputs:
-                    raise KeyError(f"{b.node.name}: output role {role!r} is not bound to a channel")
-            self._ports.append(ports)
-            self._inboxes.append(_Inbox(ports))
-            self._contexts.append(_Context(self, i))
-            self._pending_tick.append(False)
-            self.exec_ns.append([])
+            self._bind(i, b)
         self._started = False
+
+    def add(self, binding: Binding) -> None:
+        """Bind one more node (before the first ``run_until``)."""
+        if self._started:
+            raise RuntimeError("add nodes before the harness starts")
+        self.bindings.append(binding)
+        self._bind(len(self.bindings) - 1, binding)
 
     # -- observation -----------------------------------------------------------------------
     def tap(self, channel: str, callback: Callable[[int, Any], None]) -> None:
@@ -123,6 +119,23 @@ class Harness:
         """Deliver ``msg`` on ``channel`` at sim time ``at_us`` (default: now), as if published."""
         t = self.now_us if at_us is None else at_us
         self._push(t, -1, "deliver", (channel, _encode(msg)))
+
+    def _bind(self, i: int, b: Binding) -> None:
+        ports: dict[str, _Port] = {}
+        for role, typ in b.node.inputs.items():
+            if role not in b.inputs:
+                raise KeyError(f"{b.node.name}: input role {role!r} is not bound to a channel")
+            policy = b.node.trigger_policy if role == b.node.trigger_role else "newest"
+            ports[role] = _Port(typ, policy)
+            self._subscribers[b.inputs[role]].append((i, role))
+        for role in b.node.outputs:
+            if role not in b.outputs:
+                raise KeyError(f"{b.node.name}: output role {role!r} is not bound to a channel")
+        self._ports.append(ports)
+        self._inboxes.append(_Inbox(ports))
+        self._contexts.append(_Context(self, i))
+        self._pending_tick.append(False)
+        self.exec_ns.append([])
 
     # -- running ---------------------------------------------------------------------------
     def start(self) -> None:
@@ -139,8 +152,19 @@ class Harness:
     def run_until(self, t_us: int, stop: Callable[[], bool] | None = None) -> int:
         """Process every event up to sim time ``t_us``; returns the sim time reached."""
         self.start()
+        same_time = 0
         while self._events and self._events[0][0] <= t_us:
             t, _, i, kind, payload = heapq.heappop(self._events)
+            if t == self.now_us:
+                same_time += 1
+                if same_time > MAX_EVENTS_PER_INSTANT:
+                    raise RuntimeError(
+                        f"no progress in sim time at {t} us after {same_time} events: message-"
+                        "driven nodes answer each other with zero delay in a cycle, and no "
+                        "periodic node advances time (drive the sim periodically in the harness)"
+                    )
+            else:
+                same_time = 0
             self.now_us = t
             if kind == "deliver":
                 self._deliver(*payload)
@@ -164,6 +188,9 @@ class Harness:
     def from_profile(cls, profile: Profile, names: list[str] | None = None) -> Harness:
         """The profile's processes (or ``names``) built with their own ``make_node`` and bound to
         the same channels as live, each with its configured ``harness_delay_ms``."""
+        # The harness is a lockstep execution: nodes that behave differently in real time (a
+        # sim rendering depth in another process, say) are built for lockstep.
+        profile = dataclasses.replace(profile, mode="lockstep")
         bindings = []
         for name in names or list(profile.launch):
             proc = profile.processes[name]

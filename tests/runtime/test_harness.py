@@ -85,3 +85,24 @@ def test_harness_builds_the_same_processes_as_a_launch_profile():
     h.close()
     assert [t for t, _ in echoes] == list(range(0, 100_001, 5000))
     assert [v for _, v in echoes] == [float(i) for i in range(21)]
+
+
+def test_zero_delay_message_cycle_is_reported_not_hung():
+    class PingPong(Node):
+        inputs = {"in": command_t}
+        outputs = {"out": command_t}
+        trigger_role = "in"
+
+        def setup(self, ctx) -> None:  # type: ignore[no-untyped-def]
+            ctx.publish("out", command_t())
+
+        def tick(self, ctx, inbox) -> None:  # type: ignore[no-untyped-def]
+            ctx.publish("out", command_t())
+
+    import pytest
+
+    a, b = PingPong(), PingPong()
+    a.name, b.name = "a", "b"
+    h = Harness([Binding(a, {"in": "B"}, {"out": "A"}), Binding(b, {"in": "A"}, {"out": "B"})])
+    with pytest.raises(RuntimeError, match="no progress in sim time"):
+        h.run_until(1000)
