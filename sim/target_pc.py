@@ -1,0 +1,341 @@
+"""The target PC without transport: physics, watchdog, pelvis holder, packets, loop accounting.
+
+``SimCore`` owns the MuJoCo state and steps it in place with the newest joint-side torques;
+``TargetPC`` adds the UDP protocol (``runtime.cassie_packets``) and the two modes:
+
+* real time: one physics step per 0.5 ms tick; the last torque is reused when no command
+  arrived, and torques drop to zero ``watchdog_s`` (10 ms) of *sim* time after the last one;
+* lockstep: step only when a command answers the newest state (its ``ack`` equals the state's
+  ``seq``); a missing answer is a reported timeout and the state is sent again.
+
+Nothing here reads the wall clock except ``LoopStats``, which only reports; so the state of two
+runs fed the same commands is bit-identical.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from runtime.cassie_packets import (
+    FLAG_RELEASE_HOLDER,
+    STATUS_HOLDER_ENGAGED,
+    STATUS_LOCKSTEP,
+    STATUS_SLOWER_THAN_REALTIME,
+    STATUS_WATCHDOG_TRIPPED,
+    InputPacket,
+    LinkCounter,
+    OutputPacket,
+    PacketError,
+)
+from sim.model import CassieIndices, build_model, standing_pose
+from sim.terrain import Terrain
+
+log = logging.getLogger(__name__)
+
+ReleaseOn = Literal["first_command", "first_nonzero_command", "manual"]
+
+
+@dataclass(frozen=True)
+class HolderConfig:
+    """A soft weld holding the pelvis at its start pose until the controller takes over.
+
+    The weld is a MuJoCo equality constraint to a mocap body (no Python in the step loop);
+    its softness is MuJoCo's ``solref``: a time constant and a damping ratio. At 10 ms the
+    pelvis sags about 1 mm under the robot's weight.
+    """
+
+    enabled: bool = True
+    timeconst_s: float = 0.01
+    dampratio: float = 1.0
+    release_on: ReleaseOn = "first_nonzero_command"
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Physics and start-up settings of the target PC."""
+
+    watchdog_s: float = 0.010
+    impratio: float = 10.0
+    pelvis_height: float = 0.95
+    foot_y: float = 0.135
+    holder: HolderConfig = field(default_factory=HolderConfig)
+
+
+class SimCore:
+    """MuJoCo Cassie stepped in place with joint-side torques, a sim-time watchdog and a holder."""
+
+    def __init__(self, model: mujoco.MjModel, config: SimConfig | None = None,
+                 start_z: float = 0.0) -> None:
+        self.m = model
+        self.cfg = config or SimConfig()
+        self.d = mujoco.MjData(model)
+        self.idx = CassieIndices.of(model)
+        self.dt = float(model.opt.timestep)
+        self.q_start = standing_pose(model, self.cfg.pelvis_height, start_z, self.cfg.foot_y)
+        self.torque_cmd = np.zeros(len(self.idx.gear))  # newest command, N m at the joint
+        d = self.d  # views made once: the 2 kHz path only copies into existing arrays
+        self._v_quat = d.qpos[3:7]
+        self._v_gyro = d.qvel[3:6]
+        self._v_accel = d.sensordata[self.idx.accel_adr:self.idx.accel_adr + 3]
+        self.reset()
+
+    # -- state -----------------------------------------------------------------------------
+    def reset(self, qpos: np.ndarray | None = None) -> None:
+        """Back to the standing pose (or ``qpos``), at rest, holder engaged if configured."""
+        mujoco.mj_resetData(self.m, self.d)
+        self.d.qpos[:] = self.q_start if qpos is None else qpos
+        if self.idx.holder_eq < 0 and self.cfg.holder.enabled:
+            raise ValueError("this model has no pelvis holder: build it with sim.model.build_model")
+        if self.idx.holder_eq >= 0:
+            self.d.mocap_pos[self.idx.holder_mocap] = self.d.qpos[0:3]
+            self.d.mocap_quat[self.idx.holder_mocap] = self.d.qpos[3:7]
+            self.d.eq_active[self.idx.holder_eq] = self.cfg.holder.enabled
+        mujoco.mj_forward(self.m, self.d)
+        self.torque_cmd[:] = 0.0
+        self.last_command_time: float | None = None
+        self.holder_engaged = self.cfg.holder.enabled
+        self.commands = 0
+        self.steps = 0
+        self.torque_zeroed = True  # the last step applied zeros because of the watchdog
+
+    @property
+    def time(self) -> float:
+        return float(self.d.time)
+
+    @property
+    def utime(self) -> int:
+        return round(self.d.time * 1e6)
+
+    @property
+    def watchdog_tripped(self) -> bool:
+        """True when the torques applied now are zeros because commands stopped (or never came)."""
+        last = self.last_command_time
+        return last is None or self.d.time - last >= self.cfg.watchdog_s - 0.25 * self.dt
+
+    # -- inputs ----------------------------------------------------------------------------
+    def command(self, torque: np.ndarray, flags: int = 0) -> None:
+        """A new joint-side torque command (N m), received at the current sim time."""
+        self.torque_cmd[:] = torque
+        self.last_command_time = float(self.d.time)
+        self.commands += 1
+        if self.holder_engaged:
+            rel = self.cfg.holder.release_on
+            if flags & FLAG_RELEASE_HOLDER or rel == "first_command" or (
+                    rel == "first_nonzero_command" and bool(torque.any())):
+                self.release_holder()
+
+    def release_holder(self) -> None:
+        """Let go of the pelvis (idempotent)."""
+        if self.holder_engaged:
+            log.info("pelvis holder released at t=%.4f s", self.d.time)
+        self.holder_engaged = False
+        if self.idx.holder_eq >= 0:
+            self.d.eq_active[self.idx.holder_eq] = 0
+
+    # -- stepping --------------------------------------------------------------------------
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` physics steps with the newest torque (zeros once the watchdog trips)."""
+        d = self.d
+        for _ in range(n):
+            self.torque_zeroed = self.watchdog_tripped
+            if self.torque_zeroed:
+                d.ctrl[:] = 0.0
+            else:
+                np.divide(self.torque_cmd, self.idx.gear, out=d.ctrl)  # MuJoCo clamps ctrl
+            mujoco.mj_step(self.m, d)
+            self.steps += 1
+
+    # -- outputs ---------------------------------------------------------------------------
+    def fill_output(self, pkt: OutputPacket) -> None:
+        """Write the robot-output fields (IMU, motors, passive joints) of the current state."""
+        d, i = self.d, self.idx
+        pkt.utime = self.utime
+        pkt.imu_quat[:] = self._v_quat  # the IMU site is aligned with the pelvis
+        pkt.imu_gyro[:] = self._v_gyro  # free-joint angular velocity is in the body frame
+        pkt.imu_accel[:] = self._v_accel
+        d.qpos.take(i.motor_qpos, out=pkt.motor_pos)
+        d.qvel.take(i.motor_dof, out=pkt.motor_vel)
+        np.multiply(d.actuator_force, i.gear, out=pkt.motor_torque)  # clamped ctrl, last step
+        d.qpos.take(i.joint_qpos, out=pkt.joint_pos)
+        d.qvel.take(i.joint_dof, out=pkt.joint_vel)
+
+    def foot_contacts(self) -> tuple[bool, bool]:
+        """Whether each foot's collision geom touches anything now."""
+        d = self.d
+        n = d.ncon
+        if n == 0:
+            return (False, False)
+        g1 = d.contact.geom1[:n]
+        g2 = d.contact.geom2[:n]
+        left, right = self.idx.foot_geoms
+        return (bool(np.any((g1 == left) | (g2 == left))),
+                bool(np.any((g1 == right) | (g2 == right))))
+
+    def com_and_velocity(self) -> tuple[np.ndarray, np.ndarray]:
+        """Whole-robot centre of mass and its velocity (world)."""
+        mujoco.mj_subtreeVel(self.m, self.d)
+        b = self.idx.pelvis_body
+        return self.d.subtree_com[b].copy(), self.d.subtree_linvel[b].copy()
+
+
+class LoopStats:
+    """Wall-clock accounting of a periodic loop: task time, overruns, real-time factor.
+
+    ``record`` is called once per tick with the task time and how many slots the loop skipped
+    since the previous tick; the real-time factor is sim time over wall time per window.
+    """
+
+    def __init__(self, period_s: float, window_s: float = 1.0) -> None:
+        self.period_s = period_s
+        self.window_s = window_s
+        self.ticks = 0
+        self.overruns = 0
+        self.last_task_s = 0.0
+        self.max_task_s = 0.0
+        self.rtf = 1.0
+        self.slower_than_realtime = False
+        self.slow_windows = 0
+        self._w0_wall: float | None = None
+        self._w0_sim = 0.0
+
+    def record(self, task_s: float, sim_time: float, skipped: int = 0,
+               wall: float | None = None) -> None:
+        self.ticks += 1
+        self.last_task_s = task_s
+        if task_s > self.max_task_s:
+            self.max_task_s = task_s
+        if task_s > self.period_s or skipped > 0:
+            self.overruns += max(skipped, 1)
+        now = time.monotonic() if wall is None else wall
+        if self._w0_wall is None:
+            self._w0_wall, self._w0_sim = now, sim_time
+            return
+        elapsed = now - self._w0_wall
+        if elapsed >= self.window_s:
+            self.rtf = (sim_time - self._w0_sim) / elapsed
+            slow = self.rtf < 0.98
+            if slow:
+                self.slow_windows += 1
+                if not self.slower_than_realtime or self.slow_windows % 10 == 1:
+                    log.warning("sim runs slower than real time: factor %.3f over the last "
+                                "%.1f s (%d overruns so far)", self.rtf, elapsed, self.overruns)
+            self.slower_than_realtime = slow
+            self._w0_wall, self._w0_sim = now, sim_time
+
+
+Mode = Literal["realtime", "lockstep"]
+
+
+class TargetPC:
+    """The target PC's packet logic around a ``SimCore``, for either mode; transport-free.
+
+    Feed it received datagrams, get back the datagram to send (a view into a reused buffer:
+    send it or copy it before the next call).
+    """
+
+    def __init__(self, core: SimCore, mode: Mode = "realtime", steps_per_command: int = 1) -> None:
+        self.core = core
+        self.mode = mode
+        self.steps_per_command = steps_per_command
+        self.link = LinkCounter()
+        self.inp = InputPacket()
+        self.out = OutputPacket()
+        self.stats = LoopStats(core.dt * (steps_per_command if mode == "lockstep" else 1))
+        self.timeouts = 0  # lockstep: no answer within the timeout
+        self.unanswered = 0  # lockstep: commands whose ack is not the newest state
+        self.last_error = ""
+        self._errors_logged = 0
+
+    def receive(self, data: bytes | bytearray | memoryview) -> bool:
+        """Decode and account one datagram; False (counted, never raised) if malformed."""
+        try:
+            self.inp.decode(data)
+        except PacketError as exc:
+            self.link.on_error()
+            self.last_error = str(exc)
+            if self._errors_logged < 10 or self.link.malformed % 1000 == 0:
+                self._errors_logged += 1
+                log.warning("rejected packet #%d: %s", self.link.malformed, exc)
+            return False
+        self.link.on_receive(self.inp.seq, self.inp.ack)
+        return True
+
+    def status_bits(self) -> int:
+        c = self.core
+        bits = 0
+        if c.holder_engaged:
+            bits |= STATUS_HOLDER_ENGAGED
+        if c.torque_zeroed:
+            bits |= STATUS_WATCHDOG_TRIPPED
+        if self.stats.slower_than_realtime:
+            bits |= STATUS_SLOWER_THAN_REALTIME
+        if self.mode == "lockstep":
+            bits |= STATUS_LOCKSTEP
+        return bits
+
+    def encode_state(self) -> memoryview:
+        """The robot-output datagram of the current state, with the next own seq."""
+        self.core.fill_output(self.out)
+        if self.mode == "realtime":  # wall-clock figures would make lockstep runs differ
+            self.out.task_time_s = self.stats.last_task_s
+            self.out.overruns = self.stats.overruns
+        self.out.status = self.status_bits()
+        return self.out.encode(self.link.next_seq(), self.link.last_peer_seq)
+
+    def realtime_cycle(self, data: bytes | bytearray | memoryview | None, steps: int = 1
+                       ) -> memoryview:
+        """One tick: take the newest command if any, step ``steps`` times (1 at 2 kHz), return
+        the state."""
+        if data is not None and self.receive(data):
+            self.core.command(self.inp.torque, self.inp.flags)
+        self.core.step(steps)
+        return self.encode_state()
+
+    def lockstep_cycle(self, data: bytes | bytearray | memoryview | None) -> memoryview | None:
+        """Step only on a command answering the newest state; None means send nothing.
+
+        ``data is None`` is a timeout: counted, reported, and the last state is sent again
+        (same seq) in case it was lost.
+        """
+        if data is None:
+            self.timeouts += 1
+            if self.timeouts <= 10 or self.timeouts % 100 == 0:
+                log.warning("lockstep: no command answered state seq %d within the timeout "
+                            "(%d timeouts); resending it", self.out.seq, self.timeouts)
+            return self.out.view
+        if not self.receive(data):
+            return None
+        if self.inp.ack != self.out.seq:
+            self.unanswered += 1
+            return None
+        self.core.command(self.inp.torque, self.inp.flags)
+        self.core.step(self.steps_per_command)
+        return self.encode_state()
+
+    def summary(self) -> str:
+        c = self.core
+        s = (f"{self.mode} t={c.time:.3f}s rtf={self.stats.rtf:.3f} "
+             f"overruns={self.stats.overruns} {self.link.summary()}")
+        if c.holder_engaged:
+            s += " holder=on"
+        if c.torque_zeroed:
+            s += " watchdog=zero-torque"
+        if self.mode == "lockstep":
+            s += f" timeouts={self.timeouts} unanswered={self.unanswered}"
+        if self.stats.slower_than_realtime:
+            s += " SLOWER-THAN-REALTIME"
+        return s
+
+
+def make_core(terrain: Terrain | None = None, config: SimConfig | None = None) -> SimCore:
+    """Convenience: build the model for ``terrain`` and a core standing on its start surface."""
+    cfg = config or SimConfig()
+    h = cfg.holder
+    m = build_model(terrain, impratio=cfg.impratio, holder_solref=(h.timeconst_s, h.dampratio))
+    return SimCore(m, cfg, start_z=terrain.start_z if terrain is not None else 0.0)

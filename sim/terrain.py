@@ -1,0 +1,425 @@
+"""Terrains for the sim: boxes on a ground plane (or over a pit), plus ground-truth footholds.
+
+A ``Terrain`` is plain data: the boxes ``sim.model`` adds as MuJoCo geoms, and the convex
+foothold polygons (each box's top face shrunk by a margin) a controller can use when it runs
+with perfect terrain knowledge. Terrains come from YAML files (``hw_config/terrains/``) or from
+seeded generators: ``flat``, ``stairs``, ``beam``, ``stones`` (the paper's Table I stepping
+stones) and ``blocks``. The robot starts at the origin facing +x, standing at ``start_z``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from runtime.errors import ConfigError
+
+#: Table I of Acosta & Posa: uniform bounds of the stepping-stone samples (metres).
+STONE_XY_OFFSET = 0.05
+STONE_Z_OFFSET = 0.075
+STONE_SIZE_EXTRA = 0.05
+STONE_SPACING_EXTRA = 0.21  # nominal centre spacing = d_min + 21 cm
+STONE_ROWS = 5  # along x, the walking direction
+STONE_COLS = 3  # across y
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned-in-z box: centre (world), full side lengths, yaw about z (rad)."""
+
+    center: tuple[float, float, float]
+    size: tuple[float, float, float]
+    yaw: float = 0.0
+
+    @property
+    def top_z(self) -> float:
+        return self.center[2] + 0.5 * self.size[2]
+
+    def top_corners(self, margin: float = 0.0) -> np.ndarray:
+        """The top face's corners shrunk by ``margin``, counter-clockwise from above, (4, 3)."""
+        hx = max(0.5 * self.size[0] - margin, 0.0)
+        hy = max(0.5 * self.size[1] - margin, 0.0)
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
+        rot = np.array([[c, -s], [s, c]])
+        xy = local @ rot.T + np.array(self.center[:2])
+        return np.column_stack([xy, np.full(4, self.top_z)])
+
+
+@dataclass(frozen=True)
+class Foothold:
+    """A convex, planar foothold: vertices CCW seen from above, plane ``normal . p = offset``."""
+
+    vertices: np.ndarray  # (n, 3)
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    offset: float = 0.0
+
+    def halfspaces(self) -> tuple[np.ndarray, np.ndarray]:
+        """(A, b) with A p <= b inside: one row per edge, outward unit normals in the xy plane
+        (the polygon is vertical-walled over its plane, as ``foothold_t`` describes)."""
+        v = self.vertices
+        edge = np.roll(v, -1, axis=0) - v
+        n = np.column_stack([edge[:, 1], -edge[:, 0], np.zeros(len(v))])  # outward for CCW
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        return n, np.einsum("ij,ij->i", n, v)
+
+    def contains_xy(self, x: float, y: float) -> bool:
+        """True if (x, y) is inside the polygon's projection (edges count as inside)."""
+        v = self.vertices[:, :2]
+        nxt = np.roll(v, -1, axis=0)
+        cross = (nxt[:, 0] - v[:, 0]) * (y - v[:, 1]) - (nxt[:, 1] - v[:, 1]) * (x - v[:, 0])
+        return bool((cross >= -1e-12).all())
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """Boxes to add to the model, the ground plane height (None: no ground) and footholds."""
+
+    name: str
+    boxes: tuple[Box, ...] = ()
+    footholds: tuple[Foothold, ...] = ()
+    ground_z: float | None = 0.0
+    start_z: float = 0.0  # height of the surface under the robot's feet at start
+    seed: int | None = None
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+def _top_foothold(box: Box, margin: float) -> Foothold:
+    return Foothold(vertices=box.top_corners(margin), normal=(0.0, 0.0, 1.0), offset=box.top_z)
+
+
+def _rect_foothold(x0: float, x1: float, y0: float, y1: float, z: float, margin: float) -> Foothold:
+    box = Box(center=(0.5 * (x0 + x1), 0.5 * (y0 + y1), z - 0.5), size=(x1 - x0, y1 - y0, 1.0))
+    return _top_foothold(box, margin)
+
+
+def _slab(x0: float, x1: float, width: float, top: float, bottom: float, y: float = 0.0) -> Box:
+    """A box spanning x0..x1, centred on y, from ``bottom`` up to ``top``."""
+    return Box(
+        center=(0.5 * (x0 + x1), y, 0.5 * (top + bottom)),
+        size=(x1 - x0, width, top - bottom),
+    )
+
+
+def foothold_set_msg(terrain: Terrain, utime: int = 0) -> Any:
+    """The terrain's ground-truth footholds as an ``lcmtypes.foothold_set_t`` (what S3 would
+    publish with perfect perception), for controllers run with perfect terrain knowledge."""
+    from lcmtypes import foothold_set_t, foothold_t
+
+    msg = foothold_set_t()
+    msg.header.utime = utime
+    msg.map_seq = -1  # not from an elevation map
+    for fh in terrain.footholds:
+        a, b = fh.halfspaces()
+        f = foothold_t()
+        f.normal = list(fh.normal)
+        f.offset = float(fh.offset)
+        f.num_halfspaces = len(b)
+        f.A = a.tolist()
+        f.b = b.tolist()
+        f.num_vertices = len(fh.vertices)
+        f.vertices = fh.vertices.tolist()
+        msg.footholds.append(f)
+    msg.num_footholds = len(msg.footholds)
+    msg.status = 0 if msg.footholds else 2
+    msg.status_text = f"ground truth: {terrain.name}"
+    return msg
+
+
+# -- generators ----------------------------------------------------------------------------
+
+
+def flat(margin: float = 0.02, extent: float = 10.0) -> Terrain:
+    """The ground plane at z = 0; one foothold covering ``extent`` metres around the start."""
+    fh = _rect_foothold(-extent, extent, -extent, extent, 0.0, margin)
+    return Terrain("flat", footholds=(fh,), params={"margin": margin, "extent": extent})
+
+
+def stairs(
+    rise: float = 0.15,
+    depth: float = 0.27,
+    count: int = 6,
+    width: float = 2.0,
+    start_length: float = 0.6,
+    landing: float = 1.5,
+    margin: float = 0.02,
+) -> Terrain:
+    """Ground, then ``count`` steps up (solid boxes from the ground), then a landing."""
+    boxes: list[Box] = []
+    holds = [_rect_foothold(-2.0, start_length, -width / 2, width / 2, 0.0, margin)]
+    x = start_length
+    for i in range(1, count + 1):
+        length = depth if i < count else landing
+        box = _slab(x, x + length, width, i * rise, 0.0)
+        boxes.append(box)
+        holds.append(_top_foothold(box, margin))
+        x += length
+    params = dict(rise=rise, depth=depth, count=count, width=width, start_length=start_length,
+                  landing=landing, margin=margin)
+    return Terrain("stairs", boxes=tuple(boxes), footholds=tuple(holds), params=params)
+
+
+def beam(
+    width: float = 0.23,
+    length: float = 8.0,
+    platform: float = 1.0,
+    pit_depth: float = 0.5,
+    margin: float = 0.02,
+) -> Terrain:
+    """A start platform, a beam of ``width`` x ``length`` and an end platform over a pit."""
+    bottom = -pit_depth
+    start = _slab(-platform, 0.3, 1.5, 0.0, bottom)
+    beam_box = _slab(0.3, 0.3 + length, width, 0.0, bottom)
+    end = _slab(0.3 + length, 0.3 + length + platform, 1.5, 0.0, bottom)
+    boxes = (start, beam_box, end)
+    params = dict(width=width, length=length, platform=platform, pit_depth=pit_depth, margin=margin)
+    return Terrain("beam", boxes=boxes, footholds=tuple(_top_foothold(b, margin) for b in boxes),
+                   ground_z=bottom, params=params)
+
+
+@dataclass(frozen=True)
+class StoneSample:
+    """One stepping stone as drawn from Table I: grid cell, nominal centre and the draws."""
+
+    row: int
+    col: int
+    nominal_xy: tuple[float, float]
+    offset: tuple[float, float, float]  # x, y, z offsets
+    length: float  # along x
+    width: float  # along y
+
+
+def sample_stones(rng: np.random.Generator, d_min: float, first_x: float) -> list[StoneSample]:
+    """Draw the 5 x 3 grid of stepping stones with the bounds of Table I (uniform)."""
+    spacing = d_min + STONE_SPACING_EXTRA
+    out: list[StoneSample] = []
+    for row in range(STONE_ROWS):
+        for col in range(STONE_COLS):
+            nominal = (first_x + row * spacing, (col - (STONE_COLS - 1) / 2) * spacing)
+            dx, dy = rng.uniform(-STONE_XY_OFFSET, STONE_XY_OFFSET, size=2)
+            dz = rng.uniform(-STONE_Z_OFFSET, STONE_Z_OFFSET)
+            length, width = rng.uniform(d_min, d_min + STONE_SIZE_EXTRA, size=2)
+            out.append(StoneSample(row, col, nominal, (float(dx), float(dy), float(dz)),
+                                   float(length), float(width)))
+    return out
+
+
+def stones(
+    d_min: float = 0.35,
+    seed: int = 0,
+    platform: float = 1.0,
+    pit_depth: float = 0.5,
+    margin: float = 0.02,
+) -> Terrain:
+    """The paper's random stepping stones (Section VIII-A1, Table I) between two platforms."""
+    rng = np.random.default_rng(seed)
+    bottom = -pit_depth
+    spacing = d_min + STONE_SPACING_EXTRA
+    start_edge = 0.3
+    first_x = start_edge + STONE_SPACING_EXTRA + d_min / 2
+    samples = sample_stones(rng, d_min, first_x)
+    grid_width = (STONE_COLS - 1) * spacing + d_min + 0.2
+    boxes = [_slab(start_edge - platform, start_edge, grid_width, 0.0, bottom)]
+    for s in samples:
+        top = s.offset[2]
+        boxes.append(Box(
+            center=(s.nominal_xy[0] + s.offset[0], s.nominal_xy[1] + s.offset[1],
+                    0.5 * (top + bottom)),
+            size=(s.length, s.width, top - bottom),
+        ))
+    end_edge = first_x + (STONE_ROWS - 1) * spacing + d_min / 2 + STONE_SPACING_EXTRA
+    boxes.append(_slab(end_edge, end_edge + platform, grid_width, 0.0, bottom))
+    params = dict(d_min=d_min, seed=seed, platform=platform, pit_depth=pit_depth, margin=margin,
+                  samples=samples)
+    return Terrain("stones", boxes=tuple(boxes),
+                   footholds=tuple(_top_foothold(b, margin) for b in boxes),
+                   ground_z=bottom, seed=seed, params=params)
+
+
+def blocks(
+    count: int = 12,
+    seed: int = 0,
+    area: tuple[float, float, float, float] = (0.6, 4.0, -1.0, 1.0),
+    size_min: float = 0.25,
+    size_max: float = 0.6,
+    height_max: float = 0.12,
+    max_yaw_deg: float = 30.0,
+    margin: float = 0.02,
+) -> Terrain:
+    """Random, non-overlapping blocks on the ground ahead of the robot (start area clear).
+
+    Footholds: each block's top face, plus the clear ground rectangle around the start (the
+    ground between blocks is not convex, so it is left out of the ground truth). Fewer than
+    ``count`` blocks are placed if the area cannot hold them.
+    """
+    rng = np.random.default_rng(seed)
+    x0, x1, y0, y1 = area
+    boxes: list[Box] = []
+    circles: list[tuple[float, float, float]] = []
+    for _ in range(count * 50):  # rejection sampling: blocks never overlap
+        if len(boxes) == count:
+            break
+        sx, sy = rng.uniform(size_min, size_max, size=2)
+        h = rng.uniform(0.02, height_max)
+        cx, cy = rng.uniform(x0, x1), rng.uniform(y0, y1)
+        yaw = math.radians(rng.uniform(-max_yaw_deg, max_yaw_deg))
+        r = 0.5 * math.hypot(sx, sy)
+        if any(math.hypot(cx - x, cy - y) < r + rr for x, y, rr in circles):
+            continue
+        circles.append((float(cx), float(cy), r))
+        boxes.append(Box(center=(float(cx), float(cy), float(h / 2)),
+                         size=(float(sx), float(sy), float(h)), yaw=float(yaw)))
+    clear = max(0.0, x0 - size_max * 0.75)
+    holds = [_rect_foothold(-1.5, clear, -1.0, 1.0, 0.0, margin)]
+    holds += [_top_foothold(b, margin) for b in boxes]
+    params = dict(count=count, seed=seed, area=area, size_min=size_min, size_max=size_max,
+                  height_max=height_max, max_yaw_deg=max_yaw_deg, margin=margin)
+    return Terrain("blocks", boxes=tuple(boxes), footholds=tuple(holds), seed=seed, params=params)
+
+
+def from_boxes(
+    boxes: list[Box], ground_z: float | None = 0.0, start_z: float = 0.0, margin: float = 0.02
+) -> Terrain:
+    """A hand-written terrain: the given boxes; footholds are their top faces."""
+    return Terrain("boxes", boxes=tuple(boxes),
+                   footholds=tuple(_top_foothold(b, margin) for b in boxes),
+                   ground_z=ground_z, start_z=start_z, params={"margin": margin})
+
+
+#: generator name -> (function, parameter defaults with their types)
+GENERATORS: dict[str, Callable[..., Terrain]] = {
+    "flat": flat, "stairs": stairs, "beam": beam, "stones": stones, "blocks": blocks,
+}
+_INT_PARAMS = {"count", "seed"}
+_MAY_BE_ZERO_OR_NEG = {"seed", "max_yaw_deg", "margin", "start_length"}
+
+
+def generate(name: str, **params: Any) -> Terrain:
+    """Run the generator called ``name`` with ``params`` (see ``GENERATORS``)."""
+    return GENERATORS[name](**params)
+
+
+# -- YAML ----------------------------------------------------------------------------------
+
+_TOP_KEYS = {"terrain", "seed", "params", "boxes", "ground_z", "start_z", "foothold_margin"}
+
+
+def _number(file: str, key: str, value: Any, *, integer: bool = False, positive: bool = True
+            ) -> float | int:
+    ok = isinstance(value, int) if integer else isinstance(value, (int, float))
+    if isinstance(value, bool) or not ok or not math.isfinite(float(value)):
+        kind = "an integer" if integer else "a number"
+        raise ConfigError(file, key, f"must be {kind}, got {value!r}")
+    if positive and value <= 0:
+        raise ConfigError(file, key, f"must be > 0, got {value!r}")
+    return int(value) if integer else float(value)
+
+
+def _vec3(file: str, key: str, value: Any, positive: bool) -> tuple[float, float, float]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise ConfigError(file, key, f"must be a list of 3 numbers, got {value!r}")
+    return tuple(_number(file, f"{key}[{i}]", v, positive=positive)  # type: ignore[return-value]
+                 for i, v in enumerate(value))
+
+
+def load_terrain(path: str | Path) -> Terrain:
+    """Read a terrain YAML file; raises ``ConfigError`` naming the file and key on bad input.
+
+    Either ``terrain: NAME`` (a generator, with ``params`` and an optional ``seed``) or
+    ``terrain: boxes`` with a ``boxes`` list of ``{center, size, yaw_deg}``.
+    """
+    file = str(path)
+    try:
+        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(file, "terrain", f"cannot read the file: {exc.strerror}") from exc
+    except yaml.YAMLError as exc:
+        raise ConfigError(file, "terrain", f"not valid YAML: {exc}") from exc
+    if not isinstance(doc, dict):
+        raise ConfigError(file, "terrain", "the file must hold a mapping with a 'terrain' key")
+    for key in doc:
+        if key not in _TOP_KEYS:
+            raise ConfigError(file, str(key), "unknown key", allowed=", ".join(sorted(_TOP_KEYS)))
+    name = doc.get("terrain")
+    allowed_names = ", ".join([*GENERATORS, "boxes"])
+    if name not in GENERATORS and name != "boxes":
+        raise ConfigError(file, "terrain", f"unknown terrain {name!r}", allowed=allowed_names)
+    margin = doc.get("foothold_margin", 0.02)
+    margin = _number(file, "foothold_margin", margin, positive=False)
+    if margin < 0:
+        raise ConfigError(file, "foothold_margin", f"must be >= 0, got {margin!r}")
+
+    if name == "boxes":
+        for key in ("params", "seed"):
+            if key in doc:
+                raise ConfigError(file, key, "not used by 'terrain: boxes'",
+                                  allowed="boxes, ground_z, start_z, foothold_margin")
+        raw = doc.get("boxes")
+        if not isinstance(raw, list) or not raw:
+            raise ConfigError(file, "boxes", "must be a non-empty list of boxes")
+        boxes = []
+        for i, b in enumerate(raw):
+            k = f"boxes[{i}]"
+            if not isinstance(b, dict):
+                raise ConfigError(file, k, "must be a mapping with center, size, yaw_deg")
+            for bk in b:
+                if bk not in ("center", "size", "yaw_deg"):
+                    raise ConfigError(file, f"{k}.{bk}", "unknown key",
+                                      allowed="center, size, yaw_deg")
+            if "center" not in b or "size" not in b:
+                raise ConfigError(file, k, "needs both 'center' and 'size'")
+            center = _vec3(file, f"{k}.center", b["center"], positive=False)
+            size = _vec3(file, f"{k}.size", b["size"], positive=True)
+            yaw = _number(file, f"{k}.yaw_deg", b.get("yaw_deg", 0.0), positive=False)
+            boxes.append(Box(center, size, math.radians(yaw)))
+        ground = doc.get("ground_z", 0.0)
+        if ground is not None:
+            ground = _number(file, "ground_z", ground, positive=False)
+        start = _number(file, "start_z", doc.get("start_z", 0.0), positive=False)
+        return from_boxes(boxes, ground_z=ground, start_z=float(start), margin=float(margin))
+
+    for key in ("boxes", "ground_z", "start_z"):
+        if key in doc:
+            raise ConfigError(file, key, f"only for 'terrain: boxes', not {name!r}")
+    gen = GENERATORS[name]
+    defaults = {k: v for k, v in _defaults(gen).items() if k != "margin"}
+    params = doc.get("params") or {}
+    if not isinstance(params, dict):
+        raise ConfigError(file, "params", f"must be a mapping, got {params!r}")
+    kwargs: dict[str, Any] = {"margin": float(margin)}
+    for key, value in params.items():
+        k = f"params.{key}"
+        if key not in defaults or key == "seed":
+            raise ConfigError(file, k, f"not a parameter of {name!r}",
+                              allowed=", ".join(p for p in defaults if p != "seed"))
+        if key == "area":
+            if not isinstance(value, list) or len(value) != 4:
+                raise ConfigError(file, k, "must be [x_min, x_max, y_min, y_max]")
+            vals = [_number(file, f"{k}[{i}]", v, positive=False) for i, v in enumerate(value)]
+            if vals[0] >= vals[1] or vals[2] >= vals[3]:
+                raise ConfigError(file, k, "needs x_min < x_max and y_min < y_max")
+            kwargs[key] = tuple(vals)
+            continue
+        kwargs[key] = _number(file, k, value, integer=key in _INT_PARAMS,
+                              positive=key not in _MAY_BE_ZERO_OR_NEG)
+    if "seed" in doc:
+        if "seed" not in defaults:
+            raise ConfigError(file, "seed", f"terrain {name!r} is not random")
+        kwargs["seed"] = _number(file, "seed", doc["seed"], integer=True, positive=False)
+    if name == "blocks":
+        lo, hi = kwargs.get("size_min", 0.25), kwargs.get("size_max", 0.6)
+        if lo > hi:
+            raise ConfigError(file, "params.size_min", f"{lo} is above size_max {hi}")
+    return gen(**kwargs)
+
+
+def _defaults(fn: Callable[..., Terrain]) -> dict[str, Any]:
+    import inspect
+
+    return {n: p.default for n, p in inspect.signature(fn).parameters.items()}

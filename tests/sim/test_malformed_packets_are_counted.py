@@ -1,0 +1,99 @@
+"""Short, long, wrong-version, wrong-kind and non-finite datagrams are rejected with a
+PacketError, counted, and never crash the target PC or change the torque it applies."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from runtime.cassie_packets import (
+    INPUT_SIZE,
+    OUTPUT_SIZE,
+    PROTOCOL_VERSION,
+    InputPacket,
+    OutputPacket,
+    PacketError,
+    encode_input,
+)
+from sim.target_pc import TargetPC, make_core
+from sim.terrain import flat
+
+GOOD = encode_input(1, 0, np.full(10, 2.0))
+
+
+@pytest.fixture(scope="module")
+def tpc() -> TargetPC:
+    return TargetPC(make_core(flat()), "realtime")
+
+
+def _valid_input(data: bytes) -> bool:
+    if len(data) != INPUT_SIZE or data[2] != PROTOCOL_VERSION or data[3] != ord("T"):
+        return False
+    return bool(np.isfinite(np.frombuffer(data, "<f8", 10, 4)).all())
+
+
+@settings(max_examples=300, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.one_of(
+    st.binary(max_size=600),
+    st.binary(min_size=INPUT_SIZE, max_size=INPUT_SIZE),
+    st.builds(lambda b, i, v: b[:i] + bytes([v]) + b[i + 1:], st.just(GOOD),
+              st.integers(0, INPUT_SIZE - 1), st.integers(0, 255)),
+))
+def test_fuzzed_datagrams_are_counted_never_raised(tpc: TargetPC, data: bytes) -> None:
+    tpc.receive(GOOD)
+    tpc.core.command(tpc.inp.torque)
+    before_bad = tpc.link.malformed
+    ok = tpc.receive(data)  # must not raise
+    assert ok == _valid_input(data)
+    assert tpc.link.malformed == before_bad + (0 if ok else 1)
+    if not ok:  # the last good packet survives a rejected one
+        np.testing.assert_array_equal(tpc.inp.torque, np.full(10, 2.0))
+    out = tpc.realtime_cycle(data)  # the whole cycle survives it too
+    assert len(out) == OUTPUT_SIZE
+
+
+@pytest.mark.parametrize("data, reason", [
+    (GOOD[:-1], "87 bytes"),
+    (GOOD + b"\0", "89 bytes"),
+    (b"", "0 bytes"),
+    (GOOD[:2] + bytes([PROTOCOL_VERSION + 1]) + GOOD[3:], "protocol version 2"),
+    (GOOD[:3] + b"S" + GOOD[4:], "kind byte"),
+    (GOOD[:4] + struct.pack("<d", float("nan")) + GOOD[12:], "NaN or inf"),
+    (GOOD[:12] + struct.pack("<d", float("inf")) + GOOD[20:], "NaN or inf"),
+])
+def test_each_kind_of_malformed_packet_says_why(data: bytes, reason: str) -> None:
+    with pytest.raises(PacketError, match=reason):
+        InputPacket().decode(data)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.one_of(st.binary(max_size=600), st.binary(min_size=OUTPUT_SIZE, max_size=OUTPUT_SIZE)))
+def test_the_nuc_side_rejects_fuzzed_state_packets_with_packet_error_only(data: bytes) -> None:
+    pkt = OutputPacket()
+    try:
+        pkt.decode(data)
+    except PacketError:
+        assert bytes(pkt.buffer[4:]) == bytes(OUTPUT_SIZE - 4)  # left untouched
+    else:
+        assert len(data) == OUTPUT_SIZE and data[3] == ord("S")
+
+
+def test_state_packet_rejects_a_torque_packet() -> None:
+    with pytest.raises(PacketError, match="476"):
+        OutputPacket().decode(GOOD)
+
+
+def test_node_counts_garbage_and_keeps_stepping(driver_factory) -> None:
+    drv = driver_factory("realtime", {"terrain": "flat", "camera_render": "inline"})
+    node = drv.node
+    for k in range(20):
+        drv.tick(b"\x00garbage" * k)
+    assert node.tpc.link.malformed == 20
+    assert node.core.steps == 20
+    assert len(drv.published["robot_output"]) == 21
+    assert "bad 20" in node.status()
