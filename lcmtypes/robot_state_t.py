@@ -16,11 +16,11 @@ class robot_state_t(object):
     the floating base is pelvis position (world), quaternion (w, x, y, z), then joints.
     """
 
-    __slots__ = ["header", "num_positions", "num_velocities", "num_motors", "q", "v", "motor_torque", "imu_accel", "alip_stance", "alip_x", "alip_stance_pos", "in_contact", "status", "packets_lost", "packets_rejected"]
+    __slots__ = ["header", "num_positions", "num_velocities", "num_motors", "q", "v", "motor_torque", "imu_accel", "alip_stance", "alip_x", "alip_stance_pos", "in_contact", "status", "target_status", "packet_seq", "packets_lost", "packets_rejected"]
 
-    __typenames__ = ["lcmtypes.header_t", "int32_t", "int32_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "double", "boolean", "int32_t", "int64_t", "int64_t"]
+    __typenames__ = ["lcmtypes.header_t", "int32_t", "int32_t", "int32_t", "double", "double", "double", "double", "int8_t", "double", "double", "boolean", "int32_t", "int32_t", "int32_t", "int64_t", "int64_t"]
 
-    __dimensions__ = [None, None, None, None, ["num_positions"], ["num_velocities"], ["num_motors"], [3], None, [4], [3], [2], None, None, None]
+    __dimensions__ = [None, None, None, None, ["num_positions"], ["num_velocities"], ["num_motors"], [3], None, [4], [3], [2], None, None, None, None, None]
 
     def __init__(self):
         self.header = lcmtypes.header_t()
@@ -78,9 +78,21 @@ class robot_state_t(object):
         LCM Type: int32_t
         """
 
+        self.target_status = 0
+        """
+        estimator STATUS_* flags (processes/state_estimator), 0 ok
+        LCM Type: int32_t
+        """
+
+        self.packet_seq = 0
+        """
+        the target PC's status bits of the packet (cassie_packets)
+        LCM Type: int32_t
+        """
+
         self.packets_lost = 0
         """
-        0 ok; bit flags otherwise (see runtime docs)
+        the target PC packet's own 8-bit seq: the bridge's ack
         LCM Type: int64_t
         """
 
@@ -109,7 +121,7 @@ class robot_state_t(object):
         buf.write(struct.pack('>4d', *self.alip_x[:4]))
         buf.write(struct.pack('>3d', *self.alip_stance_pos[:3]))
         buf.write(struct.pack('>2b', *self.in_contact[:2]))
-        buf.write(struct.pack(">iqq", self.status, self.packets_lost, self.packets_rejected))
+        buf.write(struct.pack(">iiiqq", self.status, self.target_status, self.packet_seq, self.packets_lost, self.packets_rejected))
 
     @staticmethod
     def decode(data: bytes):
@@ -134,14 +146,14 @@ class robot_state_t(object):
         self.alip_x = struct.unpack('>4d', buf.read(32))
         self.alip_stance_pos = struct.unpack('>3d', buf.read(24))
         self.in_contact = [bool(x) for x in struct.unpack('>2b', buf.read(2))]
-        self.status, self.packets_lost, self.packets_rejected = struct.unpack(">iqq", buf.read(20))
+        self.status, self.target_status, self.packet_seq, self.packets_lost, self.packets_rejected = struct.unpack(">iiiqq", buf.read(28))
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if robot_state_t in parents: return 0
         newparents = parents + [robot_state_t]
-        tmphash = (0x6fa7bde4d8bdf226+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
+        tmphash = (0x326055f2cfb7a5d2+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -1,0 +1,52 @@
+"""Foot contact from Cassie's leaf-spring deflection, with hysteresis.
+
+Cassie has no foot force sensors; its shin (knee) and heel leaf springs deflect under load.
+The heel spring sits in the achilles closed chain, so a static Jacobian map from spring torque
+to foot force is not a clean relation; instead the normal force is a linear function of the
+two deflections, ``F = -(c_shin * d_shin + c_heel * d_heel)``, whose gains were fitted against
+MuJoCo's contact forces on the Menagerie model (``hw_config/gains/state_estimator.yaml``,
+about 15 N rms over squats and leg lifts; a loaded spring deflects negative).
+
+Contact turns on above ``on_n`` and off below ``off_n`` (N), so impacts and the ringing of a
+swinging leg's springs do not chatter the contact flags (and with them the InEKF's contacts).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    """Spring-to-force gains (N/rad) and hysteresis thresholds on the force (N)."""
+
+    shin_n_per_rad: float = 2100.0
+    heel_n_per_rad: float = 2375.0
+    on_n: float = 90.0
+    off_n: float = 45.0
+
+
+class SpringContact:
+    """Normal-force estimate per foot from spring deflection, and debounced contact flags."""
+
+    def __init__(self, params: ContactParams | None = None) -> None:
+        self.params = p = params or ContactParams()
+        self._gain = np.array((p.shin_n_per_rad, p.heel_n_per_rad))
+        self.force = np.zeros(2)
+        self.in_contact = [False, False]
+
+    def update(self, spring_defl: np.ndarray) -> None:
+        """``spring_defl`` (2, 2): (shin, heel) deflection per leg, rad; updates ``force`` (N)
+        and ``in_contact``."""
+        np.matmul(spring_defl, self._gain, out=self.force)
+        np.negative(self.force, out=self.force)
+        p = self.params
+        for k in (0, 1):
+            f = self.force[k]
+            if self.in_contact[k]:
+                if f < p.off_n:
+                    self.in_contact[k] = False
+            elif f > p.on_n:
+                self.in_contact[k] = True

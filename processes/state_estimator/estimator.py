@@ -1,0 +1,336 @@
+"""Cassie's state estimator without transport: one robot-output packet in, one estimate out.
+
+Per packet (2 kHz): range checks (a bad packet is rejected, never passed on), leg kinematics
+with the rods solved, spring-deflection contact, the contact-aided InEKF (IMU propagation, leg
+kinematics correction), the full ``q``/``v`` in MuJoCo order, and the ALIP state (CoM relative
+to the stance contact, angular momentum about it) smoothed by its Kalman filter. All buffers are
+preallocated; the returned ``Estimate`` is the same object every call (copy to keep it).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from runtime.cassie_packets import OUTPUT_LAYOUT, OutputPacket
+
+from .alip_filter import AlipKalman
+from .contact import SpringContact
+from .inekf import ContactInEKF
+from .kinematics import LegKinematics
+from .params import EstimatorParams
+
+log = logging.getLogger(__name__)
+
+# estimate status bits (robot_state_t.status, low byte; see processes/state_estimator/process)
+STATUS_INITIALIZING = 1 << 0  # first packets: the filter is converging
+STATUS_NO_CONTACT = 1 << 1  # neither foot in contact: position is IMU dead reckoning
+STATUS_PACKET_GAP = 1 << 2  # packets were lost just before this one
+#: sine of the foot pitch above which the heel or toe bears the load, and back to mid-foot
+PITCH_ON = 0.03
+PITCH_OFF = 0.015
+#: consecutive packets whose time does not advance before the target PC counts as restarted
+RESTART_AFTER = 200
+
+
+#: the packet's contiguous float64 fields (runtime.cassie_packets.OUTPUT_LAYOUT), in order
+_FIELDS = ("imu_quat", "imu_gyro", "imu_accel", "motor_pos", "motor_vel", "motor_torque",
+           "joint_pos", "joint_vel")
+_F0 = OUTPUT_LAYOUT.fields["imu_quat"][1]
+_NFLOAT = sum(OUTPUT_LAYOUT[f].shape[0] for f in _FIELDS)
+if OUTPUT_LAYOUT.fields["joint_vel"][1] + 8 * OUTPUT_LAYOUT["joint_vel"].shape[0] != (
+        _F0 + 8 * _NFLOAT):
+    raise ImportError("runtime.cassie_packets layout changed: update the estimator's checks")
+_FIELD_OF = [f"{f}[{i}]" for f in _FIELDS for i in range(OUTPUT_LAYOUT[f].shape[0])]
+
+
+class RejectedPacket(ValueError):
+    """A packet with values outside the physically plausible ranges; the message says which."""
+
+
+@dataclass
+class Estimate:
+    """The estimator's output for one packet (preallocated, overwritten every call)."""
+
+    nq: int
+    nv: int
+    utime: int = 0
+    q: np.ndarray = field(init=False)  # (nq) pelvis position (world), quat (w,x,y,z), joints
+    v: np.ndarray = field(init=False)  # (nv) world linear, body angular, joint rates
+    in_contact: list[bool] = field(default_factory=lambda: [False, False])
+    force: np.ndarray = field(default_factory=lambda: np.zeros(2))  # N, per foot
+    spring_defl: np.ndarray = field(default_factory=lambda: np.zeros(2))  # shin springs, rad
+    alip_stance: int = -1  # 0 left, 1 right, -1 unknown
+    alip_x: np.ndarray = field(default_factory=lambda: np.zeros(4))  # filtered
+    alip_raw: np.ndarray = field(default_factory=lambda: np.zeros(4))  # before the filter
+    stance_pos: np.ndarray = field(default_factory=lambda: np.zeros(3))  # contact point, world
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))  # world
+    com_vel: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    status: int = 0
+
+    def __post_init__(self) -> None:
+        self.q = np.zeros(self.nq)
+        self.v = np.zeros(self.nv)
+
+
+class CassieEstimator:
+    """IMU + leg kinematics + contact -> floating base (InEKF), joints, contact, ALIP state."""
+
+    def __init__(self, params: EstimatorParams | None = None,
+                 model: mujoco.MjModel | None = None) -> None:
+        self.params = p = params or EstimatorParams()
+        self.kin = LegKinematics(model)
+        m = self.kin.m
+        site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "imu")
+        if site < 0 or int(m.site_bodyid[site]) != self.kin.pelvis:
+            raise RuntimeError("Cassie model: expected an 'imu' site on the pelvis")
+        if not np.allclose(m.site_quat[site], (1.0, 0.0, 0.0, 0.0)):
+            raise RuntimeError("Cassie model: the IMU site is expected aligned with the pelvis")
+        self.r_imu = m.site_pos[site].copy()  # IMU position in the pelvis frame
+        self._r_imu_l = self.r_imu.tolist()
+        self.filter = ContactInEKF(p.inekf, p.gravity)
+        self.contact = SpringContact(p.contact)
+        self.alip = AlipKalman(self.kin.mass, p.alip, p.gravity)
+        self.est = Estimate(self.kin.nq, self.kin.nv)
+        # joint limits for the range check (hinges only; the free joint and balls excluded)
+        hinge = m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE
+        lo = np.full(m.nq, -np.inf)
+        hi = np.full(m.nq, np.inf)
+        lim = hinge & (m.jnt_limited.astype(bool))
+        lo[m.jnt_qposadr[lim]] = m.jnt_range[lim, 0] - p.limits.joint_margin_rad
+        hi[m.jnt_qposadr[lim]] = m.jnt_range[lim, 1] + p.limits.joint_margin_rad
+        # per-double bounds, in the packet's order (_FIELDS)
+        lm = p.limits
+        sym = {"imu_quat": 1.0 + lm.quat_norm_tol, "imu_gyro": lm.max_gyro,
+               "imu_accel": lm.max_accel, "motor_vel": lm.max_joint_vel,
+               "motor_torque": lm.max_torque, "joint_vel": lm.max_joint_vel}
+        los, his = [], []
+        for name in _FIELDS:
+            n = OUTPUT_LAYOUT[name].shape[0]
+            if name == "motor_pos":
+                los.append(lo[self.kin.motor_qpos])
+                his.append(hi[self.kin.motor_qpos])
+            elif name == "joint_pos":
+                los.append(lo[self.kin.joint_qpos])
+                his.append(hi[self.kin.joint_qpos])
+            else:
+                los.append(np.full(n, -sym[name]))
+                his.append(np.full(n, sym[name]))
+        self._lo = np.concatenate(los)
+        self._hi = np.concatenate(his)
+        self._view_pkt: OutputPacket | None = None
+        self._view = np.zeros(_NFLOAT)
+        self.initialized = False
+        self.updates = 0
+        self.restarts = 0
+        self._stale = 0
+        self._last_utime = 0
+        self._gyro_prev = np.zeros(3)
+        self._h = np.zeros((2, 3))
+        self._sole_mode = [0, 0]  # per foot: 0 mid-sole, -1 / +1 the end at -/+ the axis
+        self._quat = np.zeros(4)
+        self._vb = np.zeros(3)
+        self._alip_utime = 0
+
+    # -- validation --------------------------------------------------------------------------
+    def check(self, pkt: OutputPacket) -> None:
+        """Raise ``RejectedPacket`` when a decoded packet holds implausible values.
+
+        One vectorised comparison of all 56 doubles against per-field bounds; the reason is
+        worked out only when a packet fails."""
+        x = self._floats_of(pkt)
+        n = float(x[0:4] @ x[0:4])
+        tol = self.params.limits.quat_norm_tol
+        if ((x < self._lo) | (x > self._hi)).any() or not (
+                (1.0 - tol) ** 2 <= n <= (1.0 + tol) ** 2):
+            raise RejectedPacket(self._reason(pkt, x, n))
+        if self.initialized and pkt.utime <= self._last_utime:
+            self._stale += 1
+            if self._stale >= RESTART_AFTER:
+                # time keeps running from an earlier point: the target PC was restarted
+                log.warning("robot-output time went back to %.4f s for %d packets: target PC "
+                            "restarted, re-initialising the estimator", pkt.utime * 1e-6,
+                            self._stale)
+                self.restarts += 1
+                self.initialized = False
+                self._stale = 0
+                return
+            raise RejectedPacket(f"utime {pkt.utime} does not advance (last {self._last_utime})")
+        self._stale = 0
+
+    def _floats_of(self, pkt: OutputPacket) -> np.ndarray:
+        """A float64 view of the packet's 56 doubles from imu_quat to joint_vel (cached)."""
+        if self._view_pkt is not pkt:
+            self._view_pkt = pkt
+            self._view = np.frombuffer(pkt.buffer, dtype="<f8", count=_NFLOAT, offset=_F0)
+        return self._view
+
+    def _reason(self, pkt: OutputPacket, x: np.ndarray, n: float) -> str:
+        bad = np.flatnonzero((x < self._lo) | (x > self._hi))
+        if bad.size:
+            i = int(bad[0])
+            return (f"{_FIELD_OF[i]} = {x[i]:.4g} is outside [{self._lo[i]:.4g}, "
+                    f"{self._hi[i]:.4g}]")
+        return f"IMU quaternion norm {np.sqrt(n):.3f} is not 1"
+
+    # -- the update --------------------------------------------------------------------------
+    def update(self, pkt: OutputPacket, gap: bool = False) -> Estimate:
+        """Estimate from one decoded packet (``check`` it first); ``gap``: packets were lost."""
+        kin, f = self.kin, self.filter
+        kin.update(pkt.motor_pos, pkt.motor_vel, pkt.joint_pos, pkt.joint_vel)
+        utime = pkt.utime
+        if not self.initialized:
+            self._initialize(pkt)
+        else:
+            dt = (utime - self._last_utime) * 1e-6
+            # gyro of the previous sample (zero-order hold over the interval), accel of this
+            # one (MuJoCo's accelerometer is computed during the step that led here)
+            f.propagate(self._gyro_prev, pkt.imu_accel, dt)
+        self._last_utime = utime
+        self._gyro_prev[:] = pkt.imu_gyro
+        switched = self._sole_points(f.R[2])
+        # contact from the springs, then the contact-aided correction (Hartley Sec. 6)
+        self.contact.update(kin.spring_defl)
+        flags = self.contact.in_contact
+        h = self._h
+        for k in (0, 1):
+            if flags[k] and (not f.contact[k] or switched[k]):
+                f.touchdown(k, h[k])  # a new contact point: (re)seed its slot
+            elif not flags[k] and f.contact[k]:
+                f.liftoff(k)
+        f.correct(h)
+        self._fill(pkt, gap)
+        self.updates += 1
+        return self.est
+
+    def _sole_points(self, up: np.ndarray) -> list[bool]:
+        """The point of each line foot that bears on the ground, from the IMU (IMU frame).
+
+        Flat, the sole under the capsule centre; pitched more than ``PITCH_ON``, the sole under
+        the lower end (heel or toe), back to the centre below ``PITCH_OFF``. Each choice is a
+        point that stays put while the foot rolls about it; a switch starts a new contact.
+        ``up`` is the world z axis in the pelvis frame. Returns which feet switched.
+        """
+        kin, h = self.kin, self._h
+        r, half = kin.foot_radius, kin.foot_half_length
+        switched = [False, False]
+        sin_pitch = kin.foot_axis @ up
+        for k in (0, 1):
+            sp = float(sin_pitch[k])
+            mode = self._sole_mode[k]
+            if mode == 0 and abs(sp) > PITCH_ON:
+                mode = -1 if sp > 0 else 1
+            elif mode != 0 and (abs(sp) < PITCH_OFF or mode * sp > 0):
+                mode = 0 if abs(sp) < PITCH_ON else (-1 if sp > 0 else 1)
+            if mode != self._sole_mode[k]:
+                switched[k] = True
+                self._sole_mode[k] = mode
+            hk = h[k]
+            np.subtract(kin.foot_pos[k], self.r_imu, out=hk)
+            hk -= r * up
+            if mode:
+                hk += (mode * half) * kin.foot_axis[k]
+        return switched
+
+    def _initialize(self, pkt: OutputPacket) -> None:
+        """First packet: orientation from the IMU, at rest, the lower sole on ``ground_z``."""
+        p = self.params
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, pkt.imu_quat / np.linalg.norm(pkt.imu_quat))
+        R = R.reshape(3, 3)
+        self._sole_mode[:] = [0, 0]
+        self._sole_points(R[2])
+        feet_w = (self._h + self.r_imu) @ R.T  # sole points relative to the pelvis, world axes
+        z = p.ground_z - feet_w[:, 2].min()
+        pelvis = np.array((p.init_xy[0], p.init_xy[1], z))
+        self.filter.reset(R, np.zeros(3), pelvis + R @ self.r_imu)
+        self.contact.in_contact[:] = [False, False]
+        self.alip.stance = -1
+        self.est.alip_stance = -1
+        self.updates = 0
+        self.initialized = True
+
+    def _fill(self, pkt: OutputPacket, gap: bool) -> None:
+        """Write ``q``, ``v``, contact and the ALIP state into the preallocated estimate.
+
+        3-vector arithmetic is scalar Python on purpose: cheaper than numpy's per-call cost.
+        """
+        kin, f, est = self.kin, self.filter, self.est
+        R = f.R
+        rl = R.tolist()
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rl
+        w = pkt.imu_gyro  # pelvis angular velocity, body frame (IMU aligned with the pelvis)
+        w0, w1, w2 = w.tolist()
+        q, v = est.q, est.v
+        q[7:] = kin.q[7:]
+        v[6:] = kin.v[6:]
+        # pelvis origin from the IMU point: p - R r, v - R (w x r)
+        x, y, z = self._r_imu_l
+        px, py, pz = f.p.tolist()
+        q[0] = px - (r00 * x + r01 * y + r02 * z)
+        q[1] = py - (r10 * x + r11 * y + r12 * z)
+        q[2] = pz - (r20 * x + r21 * y + r22 * z)
+        c0, c1, c2 = w1 * z - w2 * y, w2 * x - w0 * z, w0 * y - w1 * x
+        vx, vy, vz = f.v.tolist()
+        vx -= r00 * c0 + r01 * c1 + r02 * c2
+        vy -= r10 * c0 + r11 * c1 + r12 * c2
+        vz -= r20 * c0 + r21 * c1 + r22 * c2
+        v[0], v[1], v[2] = vx, vy, vz
+        mujoco.mju_mat2Quat(self._quat, R.reshape(9))
+        q[3:7] = self._quat
+        v[3:6] = w
+        est.utime = pkt.utime
+        est.in_contact[0], est.in_contact[1] = f.contact[0], f.contact[1]
+        est.force[:] = self.contact.force
+        est.spring_defl[:] = kin.spring_defl[:, 0]
+        # ALIP state (Section III-A): CoM relative to the stance contact point, momentum about it
+        vb = self._vb  # pelvis velocity in the pelvis frame, R^T v
+        vb[0] = r00 * vx + r10 * vy + r20 * vz
+        vb[1] = r01 * vx + r11 * vy + r21 * vz
+        vb[2] = r02 * vx + r12 * vy + r22 * vz
+        kin.update_momentum(vb, w)
+        (bx, by, bz), (ux, uy, uz), (lx, ly, lz) = (
+            kin.com.tolist(), kin.com_vel.tolist(), kin.angmom_com.tolist())
+        cx = q[0] + r00 * bx + r01 * by + r02 * bz
+        cy = q[1] + r10 * bx + r11 * by + r12 * bz
+        cz = q[2] + r20 * bx + r21 * by + r22 * bz
+        gx = r00 * ux + r01 * uy + r02 * uz
+        gy = r10 * ux + r11 * uy + r12 * uz
+        gz = r20 * ux + r21 * uy + r22 * uz
+        com, cv = est.com, est.com_vel
+        com[0], com[1], com[2] = cx, cy, cz
+        cv[0], cv[1], cv[2] = gx, gy, gz
+        stance = est.alip_stance
+        k0, k1 = f.contact
+        if k0 != k1:
+            stance = 0 if k0 else 1
+        elif k0 and stance < 0:
+            stance = 0  # double stance from the start: the left foot, by convention
+        status = 0
+        if self.updates < 200:
+            status |= STATUS_INITIALIZING
+        if not (k0 or k1):
+            status |= STATUS_NO_CONTACT
+        if gap:
+            status |= STATUS_PACKET_GAP
+        est.status = status
+        if stance < 0:
+            est.alip_stance = -1
+            return
+        sx, sy, sz = f.d[stance].tolist()  # the stance foot's sole contact point
+        sp = est.stance_pos
+        sp[0], sp[1], sp[2] = sx, sy, sz
+        ex, ey, ez = cx - sx, cy - sy, cz - sz
+        m = kin.mass
+        # L_p = L_com + m (c - p) x v_com (angular momentum transfer), world axes
+        raw = est.alip_raw
+        raw[0], raw[1] = ex, ey
+        raw[2] = r00 * lx + r01 * ly + r02 * lz + m * (ey * gz - ez * gy)
+        raw[3] = r10 * lx + r11 * ly + r12 * lz + m * (ez * gx - ex * gz)
+        dt = (pkt.utime - self._alip_utime) * 1e-6 if est.alip_stance == stance else 0.0
+        self._alip_utime = pkt.utime
+        est.alip_x[:] = self.alip.step(raw, stance, dt)
+        est.alip_stance = stance

@@ -1,0 +1,201 @@
+"""The torque bridge's logic, without transport: validate, clamp, watchdog, fallback.
+
+Watchdog clock: the *sim time of the robot state* that triggers each send. A command carries
+the ``utime`` of the state it was computed from, so its age is ``state.utime - cmd.utime``: how
+stale the torques are with respect to the robot they are applied to. This is deterministic
+(the harness and lockstep mode give the same trips as real time), needs no wall clock, and it
+still trips when the controller stops, because states keep arriving at 2 kHz. If the states
+themselves stop, the bridge sends nothing and the target PC's own 10 ms watchdog zeroes the
+torques. A command stamped far in the future of the state (the sim was restarted) is stale.
+
+A command holding NaN/inf, or of the wrong length, is rejected at once (counted, reported) and
+the fallback is sent until a valid command arrives: a controller producing NaN has failed, and
+waiting out the watchdog with its previous torques would be worse. The fallback is zero torque
+or joint damping ``tau = -kd * motor_velocity`` (configurable), clamped like any command.
+Before the first valid command it is always zero torque: damping torques are non-zero
+commands, and the target PC releases its start-up pelvis holder on the first of those.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from runtime.cassie_packets import NUM_MOTORS
+from runtime.config import load_yaml
+from runtime.errors import ConfigError
+
+Fallback = Literal["zero", "damping"]
+MOTOR_KINDS = ("hip_roll", "hip_yaw", "hip_pitch", "knee", "foot")
+
+# applied_input_t.source
+SOURCE_COMMAND = 0
+SOURCE_WATCHDOG_ZERO = 1
+SOURCE_WATCHDOG_DAMPING = 2
+SOURCE_REJECTED = 3
+SOURCE_NAMES = ("command", "watchdog zero", "watchdog damping", "rejected command")
+
+DEFAULT_GAINS_FILE = Path(__file__).resolve().parents[2] / "hw_config" / "gains" / (
+    "torque_bridge.yaml"
+)
+
+
+@dataclass(frozen=True)
+class BridgeParams:
+    """Torque limits and watchdog settings, per motor in ``MOTOR_NAMES`` order."""
+
+    torque_limit: tuple[float, ...] = (112.5, 112.5, 195.2, 195.2, 45.0) * 2  # N m
+    watchdog_s: float = 0.010
+    fallback: Fallback = "damping"
+    damping_kd: tuple[float, ...] = (5.0, 5.0, 5.0, 5.0, 1.0) * 2  # N m s/rad
+    release_holder: bool = False
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> BridgeParams:
+        """Read and validate ``hw_config/gains/torque_bridge.yaml``."""
+        return cls.from_dict(load_yaml(Path(path)), str(path))
+
+    @classmethod
+    def from_dict(cls, doc: Any, file: str = "<dict>") -> BridgeParams:
+        """Validate a parsed gains mapping."""
+        if not isinstance(doc, dict):
+            raise ConfigError(file, "<top level>", "must be a mapping")
+        allowed = {"torque_limit_nm", "watchdog_ms", "fallback", "damping_kd", "release_holder"}
+        for k in doc:
+            if k not in allowed:
+                raise ConfigError(file, str(k), "unknown key", ", ".join(sorted(allowed)))
+        limit = _per_kind(file, "torque_limit_nm", doc.get("torque_limit_nm"), positive=True)
+        kd = _per_kind(file, "damping_kd", doc.get("damping_kd"), positive=False)
+        wd = doc.get("watchdog_ms", 10.0)
+        if isinstance(wd, bool) or not isinstance(wd, (int, float)) or not 0.5 <= wd <= 1000:
+            raise ConfigError(file, "watchdog_ms", f"{wd!r} is out of range", "[0.5, 1000] ms")
+        fb = doc.get("fallback", "damping")
+        if fb not in ("zero", "damping"):
+            raise ConfigError(file, "fallback", f"unknown value {fb!r}", "zero, damping")
+        rel = doc.get("release_holder", False)
+        if not isinstance(rel, bool):
+            raise ConfigError(file, "release_holder", f"must be true or false, got {rel!r}")
+        return cls(
+            torque_limit=limit or cls.torque_limit,
+            watchdog_s=float(wd) / 1000.0,
+            fallback=fb,
+            damping_kd=kd or cls.damping_kd,
+            release_holder=rel,
+        )
+
+
+def _per_kind(file: str, key: str, v: Any, positive: bool) -> tuple[float, ...] | None:
+    """A mapping motor kind -> value, expanded to the 10 motors (left, then right)."""
+    if v is None:
+        return None
+    if not isinstance(v, dict):
+        raise ConfigError(file, key, f"must be a mapping of {', '.join(MOTOR_KINDS)}")
+    out = []
+    for kind in MOTOR_KINDS:
+        if kind not in v:
+            raise ConfigError(file, f"{key}.{kind}", "is required", ", ".join(MOTOR_KINDS))
+        x = v[kind]
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or x != x or x < 0 or (
+                positive and x == 0) or x > 1000:
+            raise ConfigError(file, f"{key}.{kind}", f"{x!r} is out of range",
+                              "(0, 1000]" if positive else "[0, 1000]")
+        out.append(float(x))
+    for k in v:
+        if k not in MOTOR_KINDS:
+            raise ConfigError(file, f"{key}.{k}", "unknown motor kind", ", ".join(MOTOR_KINDS))
+    return tuple(out) * 2
+
+
+class TorqueBridge:
+    """Keeps the newest valid command and turns each robot state into the torques to send."""
+
+    def __init__(self, params: BridgeParams | None = None) -> None:
+        self.params = p = params or BridgeParams()
+        if len(p.torque_limit) != NUM_MOTORS or len(p.damping_kd) != NUM_MOTORS:
+            raise ValueError(f"torque_limit and damping_kd need {NUM_MOTORS} values")
+        self.limit = np.array(p.torque_limit, dtype=float)
+        self.kd = np.array(p.damping_kd, dtype=float)
+        self.watchdog_us = round(p.watchdog_s * 1e6)
+        self.command = np.zeros(NUM_MOTORS)  # newest valid command, as received
+        self.commanded = np.zeros(NUM_MOTORS)  # newest command, as received (even if rejected)
+        self.torque = np.zeros(NUM_MOTORS)  # what goes out
+        self.command_utime: int | None = None
+        self.rejected_pending = False
+        self.source = SOURCE_WATCHDOG_ZERO
+        self.age_ms = float("inf")
+        self.watchdog_trips = 0
+        self.clamp_count = 0
+        self.nan_rejects = 0
+        self.last_reason = "no command yet"
+        self._tripped = True  # no command yet counts as tripped, but not as a trip
+
+    def on_command(self, torque: Any, utime: int) -> bool:
+        """A new command (joint-side N m, motor order) computed from the state at ``utime``.
+        Returns False (and counts it) when rejected."""
+        t = np.asarray(torque, dtype=float)
+        if t.shape != (NUM_MOTORS,):
+            self.nan_rejects += 1
+            self.rejected_pending = True
+            self.last_reason = f"command has {t.size} torques, expected {NUM_MOTORS}"
+            return False
+        self.commanded[:] = t
+        if not np.isfinite(t).all():
+            self.nan_rejects += 1
+            self.rejected_pending = True
+            self.last_reason = "command holds NaN or inf"
+            return False
+        self.command[:] = t
+        self.command_utime = int(utime)
+        self.rejected_pending = False
+        return True
+
+    def step(self, now_utime: int, motor_vel: np.ndarray) -> np.ndarray:
+        """Torques to send for the robot state at ``now_utime`` (motor velocities for the
+        damping fallback); updates ``source``, ``age_ms`` and the counters."""
+        p = self.params
+        cu = self.command_utime
+        age_us = None if cu is None else now_utime - cu
+        self.age_ms = float("inf") if age_us is None else age_us / 1000.0
+        fresh = age_us is not None and -self.watchdog_us < age_us < self.watchdog_us
+        if self.rejected_pending:
+            self._fallback(motor_vel)
+            self.source = SOURCE_REJECTED
+            self._tripped = True
+        elif fresh:
+            self.torque[:] = self.command
+            self.source = SOURCE_COMMAND
+            self._tripped = False
+            self.last_reason = "ok"
+        elif cu is None:
+            # no controller yet: zero torque, whatever the fallback. Damping torques here would
+            # be non-zero commands, and the target PC releases its start-up holder on those.
+            self.torque[:] = 0.0
+            self.source = SOURCE_WATCHDOG_ZERO
+        else:
+            if not self._tripped:
+                self.watchdog_trips += 1
+                self.last_reason = f"no fresh command for {p.watchdog_s * 1e3:.0f} ms"
+            self._tripped = True
+            self._fallback(motor_vel)
+            self.source = (SOURCE_WATCHDOG_ZERO if p.fallback == "zero"
+                           else SOURCE_WATCHDOG_DAMPING)
+        over = np.abs(self.torque) > self.limit
+        if over.any():
+            self.clamp_count += int(over.sum())
+            np.clip(self.torque, -self.limit, self.limit, out=self.torque)
+        return self.torque
+
+    def _fallback(self, motor_vel: np.ndarray) -> None:
+        if self.params.fallback == "damping" and np.isfinite(motor_vel).all():
+            np.multiply(self.kd, motor_vel, out=self.torque)
+            np.negative(self.torque, out=self.torque)
+        else:
+            self.torque[:] = 0.0
+
+    def status(self) -> str:
+        """One line: active source and counters."""
+        return (f"{SOURCE_NAMES[self.source]}; trips {self.watchdog_trips} clamps "
+                f"{self.clamp_count} rejects {self.nan_rejects}; {self.last_reason}")

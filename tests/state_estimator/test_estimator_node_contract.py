@@ -1,0 +1,73 @@
+"""The estimator node's message contract: stamps, sizes, status packing, duplicates, restarts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from processes.state_estimator.estimator import RESTART_AFTER, STATUS_INITIALIZING
+from processes.state_estimator.process import StateEstimatorNode, packet_seq_of
+from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
+from runtime.harness import Binding, Harness
+from tests.state_estimator.scripted import sim_settings
+
+
+def _rig() -> tuple[StateEstimatorNode, Harness, list, list]:
+    node = StateEstimatorNode()
+    h = Harness([Binding(node, inputs={"robot_output": "OUT"},
+                         outputs={"state": "S", "network_state": "N", "contact": "C"})])
+    states: list = []
+    contacts: list = []
+    h.tap("S", lambda _t, m: states.append(m))
+    h.tap("C", lambda _t, m: contacts.append(m))
+    return node, h, states, contacts
+
+
+def _packets(n: int, start_seq: int = 0) -> list[bytes]:
+    from sim.target_pc import TargetPC, make_core
+
+    core = make_core(config=sim_settings(0.02).sim)
+    tpc = TargetPC(core)
+    for _ in range(start_seq):
+        tpc.link.next_seq()
+    return [bytes(tpc.realtime_cycle(None)) for _ in range(n)]
+
+
+def test_state_is_stamped_with_packet_time_and_carries_seq_and_target_status():
+    _, h, states, contacts = _rig()
+    pkts = _packets(30, start_seq=250)  # seq wraps 255 -> 0 inside the run
+    for i, raw in enumerate(pkts):
+        h.inject("OUT", raw, at_us=1000 * i)
+    h.run_until(10**6)
+    assert len(states) == len(pkts) == len(contacts)
+    for i, s in enumerate(states):
+        assert s.header.utime == 500 * (i + 1)  # the sim's utime, not the harness clock
+        assert contacts[i].header.utime == s.header.utime
+        assert packet_seq_of(s) == (250 + i) & 0xFF
+        assert s.target_status & STATUS_HOLDER_ENGAGED  # the target PC's status bits
+        assert len(s.q) == 35 and len(s.v) == 32 and len(s.motor_torque) == 10
+        assert abs(np.linalg.norm(s.q[3:7]) - 1.0) < 1e-9
+    assert states[0].status & STATUS_INITIALIZING
+    assert states[-1].packets_lost == 0 and states[-1].packets_rejected == 0
+
+
+def test_a_resent_packet_is_answered_again_not_rejected():
+    node, h, states, _ = _rig()
+    pkts = _packets(5)
+    for i, raw in enumerate([*pkts[:3], pkts[2], *pkts[3:]]):
+        h.inject("OUT", raw, at_us=1000 * i)
+    h.run_until(10**6)
+    assert [s.header.utime for s in states] == [500, 1000, 1500, 1500, 2000, 2500]
+    assert node.rejected == 0 and node.link.duplicates == 1 and node.link.lost == 0
+
+
+def test_a_restarted_target_pc_reinitialises_the_estimator():
+    node, h, states, _ = _rig()
+    first = _packets(300)
+    again = _packets(RESTART_AFTER + 50)  # a new sim: time starts over
+    for i, raw in enumerate(first + again):
+        h.inject("OUT", raw, at_us=1000 * i)
+    h.run_until(10**7)
+    assert node.estimator is not None and node.estimator.restarts == 1
+    assert node.rejected == RESTART_AFTER - 1  # the 200th stale packet restarts, accepted
+    assert states[-1].header.utime == 500 * len(again)
+    assert abs(states[-1].q[2] - 0.95) < 0.02  # re-initialised on the feet, not dead-reckoned
