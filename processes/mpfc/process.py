@@ -1,0 +1,348 @@
+"""The MPFC process: the laptop's footstep controller, wired to the bus.
+
+Driven by the newest robot state for the laptop (``NETWORK_CASSIE_STATE``), it keeps the gait
+timing of Section IV / Fig. 4: an MPFC stance phase starts at each touchdown with a nominal
+T_ss + T_ds remaining, and the footstep and timing solutions are ignored until T_ds after
+touchdown (double stance). It publishes the next footstep (its height looked up on the
+elevation map when one is available, Section IX-A-3), the previous and next switch times, the
+gait state and the ankle torque, plus the solve internals. A failed solve keeps the previous
+plan, as on the robot. Time is the robot state's ``utime``: no wall clock decides anything.
+
+Footholds come from ``params.footholds``: ``channel`` (the foothold set from S3, or from any
+ground-truth publisher), ``flat`` (level ground around the robot) or ``terrain:NAME_OR_FILE``
+(the ground-truth footholds of a terrain, as the sim builds them).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from lcmtypes import (
+    command_t,
+    elevation_map_t,
+    foothold_set_t,
+    mpfc_debug_t,
+    mpfc_output_t,
+    robot_state_t,
+)
+from processes.kinematics import AlipKinematics
+from processes.mpfc.footholds import Foothold
+from processes.mpfc.params import MpfcParams
+from processes.mpfc.solver import MpfcSolution, MpfcSolver
+from runtime.config_types import ProcessConfig, Profile
+from runtime.errors import ConfigError
+from runtime.node import Node
+
+LEFT, RIGHT = 0, 1
+GAIT_SS = (0, 1)  # single stance on left / right
+GAIT_DS = (2, 3)  # double stance after a left / right touchdown
+GAIT_STANDING = 4
+STATUS = {"optimal": 0, "time_limited": 1, "infeasible": 2}
+
+
+def footholds_from_msg(msg: foothold_set_t) -> list[Foothold]:
+    """lcm foothold set -> solver footholds (malformed polygons are skipped, not raised)."""
+    out = []
+    for f in msg.footholds[: msg.num_footholds]:
+        try:
+            out.append(
+                Foothold(
+                    np.asarray(f.A, dtype=float),
+                    np.asarray(f.b, dtype=float),
+                    np.asarray(f.normal, dtype=float),
+                    float(f.offset),
+                )
+            )
+        except ValueError:
+            continue
+    return out
+
+
+class MapHeight:
+    """Height lookup on the newest elevation map (Section IX-A-3), nearest valid cell."""
+
+    def __init__(self) -> None:
+        self.grid: np.ndarray | None = None
+        self.origin = np.zeros(2)
+        self.res = 1.0
+
+    def set(self, msg: elevation_map_t) -> None:
+        names = list(msg.layer_names)
+        layer = next((n for n in ("elevation_inpainted", "elevation") if n in names), None)
+        if layer is None or msg.rows <= 0 or msg.cols <= 0:
+            return
+        cells = msg.rows * msg.cols
+        data = np.frombuffer(msg.data, dtype="<f4")
+        if data.size < cells * len(names):
+            return
+        i = names.index(layer)
+        self.grid = data[i * cells : (i + 1) * cells].reshape(msg.rows, msg.cols)
+        self.origin = np.asarray(msg.origin, dtype=float)
+        self.res = float(msg.resolution)
+
+    def lookup(self, xy: np.ndarray) -> float | None:
+        """Median of the 3 x 3 cells around ``xy`` (NaN cells ignored), or None off the map."""
+        if self.grid is None:
+            return None
+        j = round((xy[0] - self.origin[0]) / self.res)
+        i = round((xy[1] - self.origin[1]) / self.res)
+        rows, cols = self.grid.shape
+        if not (1 <= i < rows - 1 and 1 <= j < cols - 1):
+            return None
+        patch = self.grid[i - 1 : i + 2, j - 1 : j + 2]
+        good = patch[np.isfinite(patch)]
+        return float(np.median(good)) if good.size else None
+
+
+class MpfcNode(Node):
+    """The MPFC loop: gait timing, ALIP state, foothold set, solve, plan."""
+
+    name = "mpfc"
+    inputs = {
+        "state": robot_state_t,
+        "footholds": foothold_set_t,
+        "elevation_map": elevation_map_t,
+        "command": command_t,
+    }
+    outputs = {"plan": mpfc_output_t, "debug": mpfc_debug_t}
+    trigger_role = "state"
+
+    def __init__(
+        self,
+        params: MpfcParams,
+        source: str,
+        static_footholds: list[Foothold],
+        default_velocity: tuple[float, float],
+        height_lookup: bool,
+    ) -> None:
+        self.params = params
+        self.solver = MpfcSolver(params)
+        self.kin = AlipKinematics()
+        self.source = source
+        self.footholds = static_footholds
+        self._foothold_seq = -1
+        self.vdes = np.array(default_velocity, dtype=float)
+        self.walking = True
+        self.height_lookup = height_lookup
+        self.map = MapHeight()
+        self.stance: int | None = None
+        self.touchdown_s = 0.0
+        self.next_touchdown_s = 0.0
+        self.stance_pos = np.zeros(3)
+        self.plan: MpfcSolution | None = None
+        self.last_status = "none"
+        self.solves = 0
+        self.failures = 0
+
+    # -- inputs --------------------------------------------------------------------------------
+    def _read_inputs(self, inbox: Any) -> None:
+        if inbox.is_fresh("command"):
+            cmd = inbox.latest("command")
+            if cmd is not None and all(math.isfinite(x) for x in (cmd.vx, cmd.vy)):
+                self.vdes[:] = (cmd.vx, cmd.vy)
+                self.walking = cmd.mode == 0
+        if self.source == "channel" and inbox.is_fresh("footholds"):
+            msg = inbox.latest("footholds")
+            if msg is not None and msg.header.seq != self._foothold_seq:
+                self._foothold_seq = msg.header.seq
+                fresh = footholds_from_msg(msg)
+                if fresh or msg.status == 2:
+                    self.footholds = fresh
+        if self.height_lookup and inbox.is_fresh("elevation_map"):
+            m = inbox.latest("elevation_map")
+            if m is not None:
+                self.map.set(m)
+
+    # -- the loop ------------------------------------------------------------------------------
+    def tick(self, ctx: Any, inbox: Any) -> None:
+        state = inbox.trigger()
+        self._read_inputs(inbox)
+        q = np.asarray(state.q, dtype=float)
+        v = np.asarray(state.v, dtype=float)
+        if (
+            q.size != self.kin.m.nq
+            or v.size != self.kin.m.nv
+            or not (np.isfinite(q).all() and np.isfinite(v).all())
+        ):
+            self.last_status = "bad state (NaN or wrong size): plan kept"
+            self._publish(ctx, state, None, "error")
+            return
+        t = state.header.utime * 1e-6
+        self.kin.update(q, v)
+        yaw = self.kin.pelvis_yaw()
+        p = self.params
+        if not self.walking:
+            self.stance = None
+            self._publish(ctx, state, None, "standing")
+            return
+        if self.stance is None:  # start walking as if the left foot just touched down: the
+            self.stance = LEFT  # gait begins in double stance, where the OSC hands over
+            self.touchdown_s = t
+            self.next_touchdown_s = self.touchdown_s + p.t_s2s_s
+            self.stance_pos = self.kin.foot_points[LEFT].copy()
+            self.solver.reset()
+        elif t >= self.next_touchdown_s:  # touchdown of the swing foot: the stances swap
+            self.stance = 1 - self.stance
+            self.touchdown_s = self.next_touchdown_s
+            self.next_touchdown_s = self.touchdown_s + p.t_s2s_s
+        self.stance_pos = self.kin.foot_points[self.stance].copy()
+        since = t - self.touchdown_s
+        t_star = max(p.t_s2s_s - since, 0.0)
+        x = self.kin.alip_state(self.stance_pos, yaw)
+        # The command is in the pelvis-yaw frame, which is the stance frame's orientation.
+        sol = self.solver.solve(
+            x,
+            "left" if self.stance == LEFT else "right",
+            self.stance_pos,
+            t_star,
+            self.vdes,
+            self.footholds,
+            yaw=yaw,
+        )
+        self.solves += 1
+        self.last_status = sol.status
+        if sol.has_plan:
+            if since >= p.t_ds_s:  # solutions are ignored during double stance (Fig. 4)
+                self.next_touchdown_s = t + sol.t_remaining_opt_s
+            self.plan = sol
+        else:
+            self.failures += 1
+        self._publish(ctx, state, sol, sol.status, yaw)
+
+    # -- outputs -------------------------------------------------------------------------------
+    def _publish(
+        self,
+        ctx: Any,
+        state: robot_state_t,
+        sol: MpfcSolution | None,
+        status: str,
+        yaw: float = 0.0,
+    ) -> None:
+        out = mpfc_output_t()
+        out.header.utime = state.header.utime
+        t = state.header.utime * 1e-6
+        plan = self.plan
+        if self.stance is None or plan is None or plan.footsteps is None:
+            out.gait_state = GAIT_STANDING
+            out.stance = LEFT if self.stance is None else self.stance
+            out.solve_status = 3 if status == "error" else STATUS.get(status, 3)
+        else:
+            in_ds = t - self.touchdown_s < self.params.t_ds_s
+            out.gait_state = (GAIT_DS if in_ds else GAIT_SS)[self.stance]
+            out.stance = self.stance
+            step = plan.footsteps[0].copy()
+            if self.height_lookup:
+                z = self.map.lookup(step[:2])
+                if z is not None:
+                    step[2] = z
+            out.next_footstep_world = step.tolist()
+            c, s = math.cos(yaw), math.sin(yaw)
+            d = step - self.stance_pos
+            out.next_footstep = [c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]]
+            out.stance_foot_world = self.stance_pos.tolist()
+            out.stance_yaw = yaw
+            out.prev_switch_time_s = self.touchdown_s
+            out.next_switch_time_s = self.next_touchdown_s
+            out.ankle_torque = 0.0 if in_ds else float(plan.ankle_torque_nm)
+            out.num_footsteps = len(plan.footsteps)
+            out.footsteps_world = plan.footsteps.tolist()
+            out.solve_status = STATUS.get(status, 3)
+        out.desired_velocity = self.vdes.tolist()
+        ctx.publish("plan", out)
+        dbg = mpfc_debug_t()
+        dbg.header.utime = state.header.utime
+        if sol is not None:
+            dbg.solve_wall_ms = sol.solve_wall_ms
+            dbg.optimizer_ms = sol.optimizer_ms
+            dbg.nodes_explored = sol.nodes_explored
+            dbg.num_footholds = sol.footholds_considered
+            chosen = list(sol.foothold_indices or ())
+            dbg.num_steps = len(chosen)
+            dbg.chosen_footholds = chosen
+            dbg.objective = float(sol.objective) if math.isfinite(sol.objective) else 0.0
+            if sol.alip_states is not None:
+                dbg.solution = np.asarray(sol.alip_states, dtype=float).ravel().tolist()
+                dbg.solution_size = len(dbg.solution)
+        dbg.status = 0 if status == "standing" else STATUS.get(status, 3)
+        dbg.status_text = (
+            self.last_status if sol is None or sol.has_plan else f"{status}: previous plan kept"
+        )
+        if self.stance is not None:
+            dbg.initial_alip = self.kin.alip_state(self.stance_pos, yaw).tolist()
+        ctx.publish("debug", dbg)
+
+    def status(self) -> str:
+        return f"{self.solves} solves, {self.failures} kept the previous plan; {self.last_status}"
+
+
+def _static_footholds(spec: str, proc: ProcessConfig, profile: Profile) -> list[Foothold]:
+    if spec == "flat":
+        big = 50.0
+        return [
+            Foothold.from_polygon(np.array([[-big, -big], [big, -big], [big, big], [-big, big]]))
+        ]
+    if spec.startswith("terrain:"):
+        from sim import terrain as sim_terrain
+
+        name = spec.split(":", 1)[1]
+        path = profile.resolve(name)
+        if path.exists():
+            ter = sim_terrain.load_terrain(path)
+        else:
+            try:
+                ter = sim_terrain.generate(name)
+            except (KeyError, ValueError, TypeError) as exc:
+                raise ConfigError(
+                    str(proc.source_file),
+                    proc.key("params", "footholds"),
+                    f"no terrain file or generator {name!r} ({exc})",
+                    allowed="terrain:<file under hw_config/> or terrain:<generator>",
+                ) from exc
+        return footholds_from_msg(sim_terrain.foothold_set_msg(ter))
+    return []
+
+
+def make_node(proc: ProcessConfig, profile: Profile) -> Node:
+    """Build the MPFC node from ``hw_config`` (gains file: Table V; params: sources)."""
+    variant = str(proc.params.get("variant", "simulation"))
+    if variant not in ("hardware", "simulation"):
+        raise ConfigError(
+            str(proc.source_file),
+            proc.key("params", "variant"),
+            f"{variant!r} is not a column of Table V",
+            "hardware, simulation",
+        )
+    params = (
+        MpfcParams.from_yaml(proc.gains_file, variant)
+        if proc.gains_file
+        else MpfcParams.from_yaml(variant=variant)
+    )
+    spec = str(proc.params.get("footholds", "channel"))
+    if not (spec in ("channel", "flat") or spec.startswith("terrain:")):
+        raise ConfigError(
+            str(proc.source_file),
+            proc.key("params", "footholds"),
+            f"unknown foothold source {spec!r}",
+            "channel, flat, terrain:NAME",
+        )
+    vel = proc.params.get("default_velocity", [0.375, 0.0])
+    if (
+        not isinstance(vel, list)
+        or len(vel) != 2
+        or not all(isinstance(x, (int, float)) for x in vel)
+    ):
+        raise ConfigError(
+            str(proc.source_file),
+            proc.key("params", "default_velocity"),
+            f"must be [vx, vy] in m/s, got {vel!r}",
+        )
+    return MpfcNode(
+        params,
+        "channel" if spec == "channel" else "static",
+        _static_footholds(spec, proc, profile),
+        (float(vel[0]), float(vel[1])),
+        bool(proc.params.get("height_lookup", True)),
+    )

@@ -1,0 +1,633 @@
+"""Exact mixed-integer search for (15) with piqp as the QP engine.
+
+piqp has no integers, so the foothold assignment is searched here. Each leaf is a QP with
+one foothold fixed per step and its constraint hard (no big-M), which is exactly (15) with
+those binaries fixed. Two strategies, both exact:
+
+* `enumerate` (N = 2 by default): leaves visited in order of a cheap lower bound, the
+  incumbent (the previous solve's assignment) first, stopping once the next bound reaches the
+  incumbent. The bound comes from one QP without footholds (value f_b, solution z_b): for
+  every feasible z, f(z) >= f_b + 0.5 (z - z_b)' P (z - z_b), because f is convex and its
+  gradient at z_b is non-negative along every feasible direction. Minimising the right side
+  over T, u (Schur complement S on the footsteps) and over each foothold polygon gives
+  per-foothold bounds for all footholds at once (point-polygon distances in the metric S).
+  A second, exact bound is computed lazily, once per first-step foothold: the QP with only
+  p_1 fixed (later footsteps relaxed to the box around all footholds); it prunes every leaf
+  sharing that foothold. Vertex tests drop assignments that cannot meet the crossover or
+  trust-region constraints.
+* `branch_and_bound` (longer horizons, when M^N is large): best-first over partial
+  assignments, unassigned footsteps relaxed to the bounding box of all footholds (a valid
+  relaxation of (20)), children ordered and pre-pruned by the same per-foothold bounds.
+
+The soft CoM limits need slack variables; `QpEngine` adds them lazily (see its docstring),
+which keeps most QPs at 6 variables.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import piqp
+
+from processes.mpfc.footholds import LocalFootholds, edge_dist_sq
+from processes.mpfc.problem import CondensedQp
+
+SOLVED = "solved"
+INFEASIBLE = "infeasible"
+FAILED = "failed"
+
+
+@dataclass
+class QpResult:
+    """One QP: status ('solved', 'infeasible', 'failed'), objective of (15a), solution z."""
+
+    status: str
+    objective: float
+    z: np.ndarray | None
+
+
+class QpEngine:
+    """piqp dense solvers for the leaf and relaxation QPs of one solve.
+
+    Foothold rows are rewritten in place for each assignment. The soft CoM limits enter
+    lazily: each QP is solved with slack variables only for the state components in an active
+    set A (empty at first); if the solution violates a limit outside A, those components join
+    A and the QP is solved again. A QP whose dropped limits are all satisfied is exact,
+    because dropping a soft limit only lowers the objective. A persists for the whole solve,
+    and one piqp solver is kept per size of A so that dimensions never change under it.
+    """
+
+    def __init__(self, n_steps: int, eps_abs: float = 1e-9, eps_rel: float = 1e-10) -> None:
+        self.N = n_steps
+        self.nz = 2 + 2 * n_steps
+        self.ns = 4 * (n_steps + 1)
+        self.eps_abs = eps_abs
+        self.eps_rel = eps_rel
+        self.K = 0
+        self.qp: CondensedQp | None = None
+        self.optimizer_s = 0.0
+        self.solves = 0
+        self.retries = 0
+        self._solvers: dict[int, piqp.DenseSolver] = {}
+        self.active = np.zeros(0, dtype=int)
+        self._form_fresh = True
+
+    # -- per solve ------------------------------------------------------------------------
+    def load(self, qp: CondensedQp, k_rows: int) -> None:
+        """Take this solve's QP data; foothold slots hold `k_rows` rows per step."""
+        k_rows = max(4, k_rows)
+        if k_rows > self.K:
+            self.K = k_rows + (-k_rows) % 4
+            n = self.N
+            rows = n + n * self.K
+            self.Gs = np.zeros((rows, self.nz))
+            self.hs = np.ones(rows)
+            self._solvers.clear()
+        self.qp = qp
+        n, k = self.N, self.K
+        self.Gs[n: n + n * k] = 0.0
+        self.hs[n: n + n * k] = 1.0
+        self.Gs[:n] = qp.Gx
+        self.hs[:n] = qp.hx
+        self._set_active(np.zeros(0, dtype=int))
+
+    def _set_active(self, active: np.ndarray) -> None:
+        """Build the QP form with slacks for the soft-limit components in `active`."""
+        qp = self.qp
+        assert qp is not None
+        self.active = active
+        na, nz, rows_s = len(active), self.nz, self.Gs.shape[0]
+        nv = nz + na
+        self.P = np.zeros((nv, nv), order="F")
+        self.P[:nz, :nz] = qp.P
+        self.P[nz:, nz:] = 2.0 * qp.w_soft * np.eye(na)  # w_soft * s's
+        self.c = np.zeros(nv)
+        self.c[:nz] = qp.q
+        self.G = np.zeros((rows_s + 2 * na, nv), order="F")
+        self.h = np.ones(rows_s + 2 * na)
+        cs = qp.Cs[active]
+        self.G[rows_s: rows_s + na, :nz] = cs  # Cs z - s <= lim - cs
+        self.G[rows_s + na:, :nz] = -cs  # -Cs z - s <= lim + cs
+        self.G[rows_s:, nz:] = np.vstack([-np.eye(na), -np.eye(na)])
+        self.h[rows_s: rows_s + na] = qp.lim[active] - qp.cs[active]
+        self.h[rows_s + na:] = qp.lim[active] + qp.cs[active]
+        self.x_l = np.concatenate([qp.z_lo, np.zeros(na)])
+        self.x_u = np.concatenate([qp.z_hi, np.full(na, np.inf)])
+        self._form_fresh = True
+
+    def set_rows(self, step: int, f: np.ndarray | None, c: np.ndarray | None) -> None:
+        """Write step `step`'s (0-based) foothold rows F p <= c, padded to the solve's row count
+        with 0 <= 1 rows (None: only padding). Padding is finite so piqp strips nothing."""
+        r0 = self.N + step * self.K
+        cols = slice(2 + 2 * step, 4 + 2 * step)
+        if f is None:
+            self.Gs[r0: r0 + self.K, cols] = 0.0
+            self.hs[r0: r0 + self.K] = 1.0
+        else:
+            kk = f.shape[0]
+            self.Gs[r0: r0 + kk, cols] = f
+            self.hs[r0: r0 + kk] = c
+
+    # -- solving --------------------------------------------------------------------------
+    def solve(self) -> QpResult:
+        """Solve with the current rows, growing the active soft-limit set until no dropped
+        limit is violated; the objective includes every soft-limit penalty."""
+        qp = self.qp
+        assert qp is not None
+        while True:
+            res = self._run()
+            if res.status != SOLVED:
+                return res
+            z = res.z[: self.nz]
+            viol = np.abs(qp.Cs @ z + qp.cs) - qp.lim
+            viol[self.active] = -1.0
+            if not np.any(viol > 1e-9):
+                # piqp's objective already holds w s'^2 for the active limits, which at the
+                # optimum is their penalty; the dropped ones contribute nothing
+                return QpResult(SOLVED, res.objective + qp.const, z)
+            self._set_active(np.union1d(self.active, np.flatnonzero(viol > 1e-9)))
+
+    def _settings(self, s: piqp.DenseSolver, attempt: int) -> None:
+        st = s.settings
+        st.verbose = False
+        st.eps_abs = self.eps_abs * (10.0 ** attempt)
+        st.eps_rel = self.eps_rel * (10.0 ** attempt)
+        # the objective carries a large constant that cancels (||e - d||_W), so the duality
+        # gap must be tight for the objective to be right to ~1e-10 absolute
+        st.eps_duality_gap_abs = 1e-10 * (10.0 ** attempt)
+        st.eps_duality_gap_rel = 1e-10 * (10.0 ** attempt)
+        st.max_iter = 250 * (attempt + 1)
+        st.compute_timings = False
+
+    def _run(self) -> QpResult:
+        """One piqp solve; any status but solved/infeasible is retried with a fresh solver and
+        looser tolerances, and reported 'failed' (never 'infeasible') if it keeps failing."""
+        rows_s = self.Gs.shape[0]
+        self.G[:rows_s, : self.nz] = self.Gs
+        self.h[:rows_s] = self.hs
+        size = len(self.active)
+        for attempt in range(3):
+            solver = self._solvers.get(size) if attempt == 0 else None
+            if solver is None:
+                solver = piqp.DenseSolver()
+                self._settings(solver, attempt)
+                solver.setup(self.P, self.c, None, None, self.G, None, self.h, self.x_l,
+                             self.x_u)
+                if attempt == 0:  # retries use looser one-off solvers, never cached
+                    self._solvers[size] = solver
+            elif self._form_fresh:
+                solver.update(P=self.P, c=self.c, G=self.G, h_u=self.h, x_l=self.x_l,
+                              x_u=self.x_u)
+            else:
+                solver.update(G=self.G, h_u=self.h)
+            self._form_fresh = False
+            t0 = time.perf_counter()
+            status = solver.solve()
+            self.optimizer_s += time.perf_counter() - t0
+            self.solves += 1
+            if status == piqp.PIQP_SOLVED:
+                return QpResult(SOLVED, float(solver.result.info.primal_obj),
+                                np.array(solver.result.x))
+            if status == piqp.PIQP_PRIMAL_INFEASIBLE:
+                return QpResult(INFEASIBLE, np.inf, None)
+            self.retries += 1
+            self._solvers.pop(size, None)
+            self._form_fresh = True
+        return QpResult(FAILED, np.inf, None)
+
+
+@dataclass
+class SearchResult:
+    """Outcome of one exact search: status 'optimal' | 'time_limited' | 'infeasible'."""
+
+    status: str
+    assignment: tuple[int, ...] | None  # indices into the pruned foothold arrays
+    z: np.ndarray | None
+    objective: float
+    nodes: int
+    lower_bound: float
+
+
+class ExactSearch:
+    """Global optimum of (15) over foothold assignments; see the module docstring."""
+
+    def __init__(self, engine: QpEngine, rel_tol: float = 1e-8, max_leaves: int = 2000,
+                 mode: str = "auto") -> None:
+        self.engine = engine
+        self.rel_tol = rel_tol
+        self.max_leaves = max_leaves
+        self.mode = mode
+        # how many leading steps get the lazy per-foothold bound: later steps' bounds relax the
+        # earlier footsteps to a box and rarely prune
+        self.step_bound_depth = 1
+        self._chol: np.ndarray | None = None
+
+    def _gap(self, best: float) -> float:
+        """Optimality tolerance around the incumbent value (0 while there is none)."""
+        if not math.isfinite(best):
+            return 0.0
+        return self.rel_tol * max(abs(best), 1e-3)
+
+    def _prepare(self, qp: CondensedQp, lf: LocalFootholds) -> None:
+        """Load the engine; finite right-hand sides and the padded box rows for this solve."""
+        kk = lf.F.shape[1]
+        self.engine.load(qp, kk)
+        self._c = np.where(np.isfinite(lf.c), lf.c, 1.0)
+        self._fbox = np.zeros((kk, 2))
+        self._fbox[:4] = [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]]
+        self._cbox = np.ones(kk)
+        self._cbox[:4] = np.concatenate([lf.box_hi, -lf.box_lo])
+
+    def _solve_leaf(self, lf: LocalFootholds, assignment: tuple[int, ...]) -> QpResult:
+        for step, i in enumerate(assignment):
+            self.engine.set_rows(step, lf.F[i], self._c[i])
+        return self.engine.solve()
+
+    def run(
+        self,
+        qp: CondensedQp,
+        lf: LocalFootholds,
+        incumbent: tuple[int, ...] | None,
+        deadline: float,
+    ) -> SearchResult:
+        """Search all assignments of the footholds in `lf` to the N steps of `qp`."""
+        eng = self.engine
+        n, m = eng.N, lf.count
+        if m == 0:
+            return SearchResult("infeasible", None, None, np.inf, 0, np.inf)
+        self._prepare(qp, lf)
+        self._chol = None  # metric factors of this solve's Hessian, set by _foothold_bounds
+        for step in range(n):
+            eng.set_rows(step, None, None)
+        nodes = 1
+        base = eng.solve()  # (15) without foothold constraints: the root bound
+        if base.status == INFEASIBLE:
+            return SearchResult("infeasible", None, None, np.inf, nodes, np.inf)
+        if base.status == FAILED:
+            lb_step = np.zeros((n, m))
+            lb_sum = np.zeros((n, m))
+            f_b = -np.inf
+        else:
+            f_b = base.objective
+            lb_step, lb_sum = self._foothold_bounds(qp, base.z, lf)
+        ok_first, ok_pairs = self._feasible_masks(qp, lf)
+        mode = self.mode
+        if mode == "auto":
+            mode = "enumerate" if m**n <= self.max_leaves else "branch_and_bound"
+        if incumbent is not None and (len(incumbent) != n or max(incumbent) >= m):
+            incumbent = None
+        if mode == "enumerate":
+            return self._enumerate(lf, f_b, lb_step, lb_sum, ok_first, ok_pairs, incumbent,
+                                   deadline, nodes)
+        return self._branch_and_bound(lf, f_b, lb_step, ok_first, ok_pairs, incumbent, deadline,
+                                      nodes)
+
+    # -- bounds -----------------------------------------------------------------------------
+    def _foothold_bounds(
+        self, qp: CondensedQp, z_b: np.ndarray, lf: LocalFootholds
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per-step, per-foothold bounds on f - f_b, all footholds at once.
+
+        D[k, i] = min over P_i of 0.5 dp' S_k dp (S_k: Schur complement of the footstep
+        Hessian S onto step k, dp = p_k - p_k(z_b)); G[k, i] = gamma * the same with the
+        block S_kk, where S >= gamma blockdiag(S_kk). A leaf's bound is
+        f_b + max(max_k D[k, i_k], sum_k G[k, i_k]).
+        """
+        n, m = self.engine.N, lf.count
+        pm = qp.P
+        s_full = pm[2:, 2:] - pm[2:, :2] @ np.linalg.inv(pm[:2, :2]) @ pm[:2, 2:]
+        pb = z_b[2:].reshape(n, 2)
+        if n == 2:  # the usual case: 2x2 algebra in plain floats (cheaper than numpy calls)
+            chol_l, gamma = _bounds_algebra_n2(s_full.tolist())
+            if chol_l is None:
+                self._chol = None
+                return np.zeros((n, m)), np.zeros((n, m))
+            chol = np.array(chol_l)
+        else:
+            s_full = 0.5 * (s_full + s_full.T)
+            mats = np.empty((2 * n, 2, 2))
+            for k in range(n):
+                kk = slice(2 * k, 2 * k + 2)
+                rest = np.r_[0: 2 * k, 2 * k + 2: 2 * n]
+                mats[n + k] = s_full[kk, kk]
+                mats[k] = s_full[kk, kk]
+                if len(rest):
+                    mats[k] = mats[k] - s_full[kk, rest] @ np.linalg.solve(
+                        s_full[np.ix_(rest, rest)], s_full[rest, kk])
+            try:
+                chol = np.linalg.cholesky(0.5 * (mats + mats.transpose(0, 2, 1)))
+            except np.linalg.LinAlgError:
+                self._chol = None
+                return np.zeros((n, m)), np.zeros((n, m))
+            tmat = np.zeros_like(s_full)
+            for k in range(n):
+                tmat[2 * k: 2 * k + 2, 2 * k: 2 * k + 2] = np.linalg.inv(chol[n + k])
+            gamma = float(np.linalg.eigvalsh(tmat @ s_full @ tmat.T)[0])
+        self._chol = chol
+        # metric distance = Euclidean distance after mapping every point by L' (S = L L')
+        cb = chol[:, None]
+        d2 = edge_dist_sq(np.concatenate([pb, pb])[:, None, None, :] @ cb, lf.V @ cb,
+                          lf.Ed @ cb)
+        inside = np.all(lf.F @ pb.T[None] <= lf.c[..., None] + 1e-12, axis=1).T
+        d2[:n][inside] = 0.0
+        d2[n:][inside] = 0.0
+        if not (np.isfinite(gamma) and np.all(np.isfinite(d2))):
+            self._chol = None
+            return np.zeros((n, m)), np.zeros((n, m))
+        safety = 0.5 * (1.0 - 1e-7)
+        return safety * d2[:n], (safety * max(gamma, 0.0)) * d2[n:]
+
+    def _later_step_bounds(self, z: np.ndarray, lf: LocalFootholds) -> np.ndarray | None:
+        """Bounds below a node whose first footstep is fixed, from its QP solution z: the same
+        quadratic argument as at the root, centred at z, for steps 2..N. Returns (N-1, M) with
+        entry [k-1, j] = min over P_j of 0.5 dp' S_k dp, or None without factors."""
+        n = self.engine.N
+        if self._chol is None or n < 2:
+            return None
+        pts = z[4:].reshape(n - 1, 2)
+        cb = self._chol[1:n, None]
+        d2 = edge_dist_sq(pts[:, None, None, :] @ cb, lf.V @ cb, lf.Ed @ cb)
+        inside = np.all(lf.F @ pts.T[None] <= lf.c[..., None] + 1e-12, axis=1).T
+        d2[inside] = 0.0
+        if not np.all(np.isfinite(d2)):
+            return None
+        return (0.5 * (1.0 - 1e-7)) * d2
+
+    def _feasible_masks(
+        self, qp: CondensedQp, lf: LocalFootholds
+    ) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Necessary conditions for feasibility, from the vertices: step 1 must reach the
+        crossover side and the trust-region box; each later step must be able to lie on its
+        crossover side of the previous one. Returns (ok_first (M,), ok_pair[k] (M, M))."""
+        n = self.engine.N
+        tol = 1e-9
+        y = lf.V[:, :, 1]
+        ymin, ymax = y.min(axis=1), y.max(axis=1)
+        # crossover row k: gx[k] z <= hx[k] with gx = -sigma_k (y_{k+1} - y_k)
+        sig = -qp.Gx[:, 3]  # coefficient of p_1y is -sigma_0
+        ok = np.where(sig[0] > 0, sig[0] * ymax >= -qp.hx[0] - tol,
+                      sig[0] * ymin >= -qp.hx[0] - tol)
+        lo, hi = qp.z_lo[2:4], qp.z_hi[2:4]
+        if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+            x = lf.V[:, :, 0]
+            ok &= (x.max(axis=1) >= lo[0] - tol) & (x.min(axis=1) <= hi[0] + tol)
+            ok &= (ymax >= lo[1] - tol) & (ymin <= hi[1] + tol)
+            corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+            ok &= np.all((lf.F @ corners.T).min(axis=2) <= lf.c + tol, axis=1)
+        pairs = []
+        for k in range(1, n):
+            s_k = -qp.Gx[k, 3 + 2 * k]  # sigma_k, the coefficient of p_{k+1,y}
+            hi_j = np.where(s_k > 0, s_k * ymax, s_k * ymin)  # max over P_j of sigma y
+            lo_i = np.where(s_k > 0, s_k * ymin, s_k * ymax)  # min over P_i of sigma y
+            pairs.append(hi_j[None, :] - lo_i[:, None] >= -qp.hx[k] - tol)
+        return ok, pairs
+
+    # -- strategies -------------------------------------------------------------------------
+    def _enumerate(self, lf, f_b, lb_step, lb_sum, ok_first, ok_pairs, incumbent, deadline,
+                   nodes) -> SearchResult:
+        n, m = self.engine.N, lf.count
+        shape = (m,) * n
+        lb_max = np.zeros(shape)
+        lb_add = np.zeros(shape)
+        feasible = np.ones(shape, dtype=bool)
+        for k in range(n):
+            view = [1] * n
+            view[k] = m
+            lb_max = np.maximum(lb_max, lb_step[k].reshape(view))
+            lb_add = lb_add + lb_sum[k].reshape(view)
+            if k == 0:
+                feasible &= ok_first.reshape(view)
+            else:
+                pview = [1] * n
+                pview[k - 1] = m
+                pview[k] = m
+                feasible &= ok_pairs[k - 1].reshape(pview)
+        lb = np.where(feasible, f_b + np.maximum(lb_max, lb_add), np.inf).ravel()
+        order = np.argsort(lb, kind="stable")
+        best, best_a, best_z = np.inf, None, None
+        unresolved = False
+        if incumbent is not None:
+            res = self._solve_leaf(lf, incumbent)
+            nodes += 1
+            if res.status == SOLVED:
+                best, best_a, best_z = res.objective, incumbent, res.z
+            unresolved |= res.status == FAILED
+        inc_flat = None if incumbent is None else int(np.ravel_multi_index(incumbent, shape))
+        # step_lb[k][i]: exact QP value with only step k fixed to foothold i (the others relaxed
+        # to the box around all footholds); computed lazily, shared by the M^(N-1) leaves using
+        # it. Only the first `step_bound_depth` steps get one: later steps' bounds relax the
+        # earlier footsteps to a box and rarely prune.
+        depth = min(self.step_bound_depth, n)
+        step_lb: list[list[float | None]] = [[None] * m for _ in range(depth)]
+        # below[i]: quadratic bounds for steps 2..N under the node "p_1 in P_i", from its QP
+        below: list[np.ndarray | None] = [None] * m
+        cutoff = best - self._gap(best)
+        proven_lb = np.inf
+        for flat, bound in zip(order.tolist(), lb[order].tolist(), strict=True):
+            if bound == np.inf or bound >= cutoff:
+                proven_lb = bound
+                break
+            if flat == inc_flat:
+                continue
+            if time.perf_counter() > deadline:
+                return self._finish("time_limited", best_a, best_z, best, nodes, float(bound))
+            a = _unravel(flat, m, n)
+            if best < np.inf:
+                pruned = False
+                for k in range(depth):
+                    val = step_lb[k][a[k]]
+                    if val is None:
+                        val, z_node = self._step_bound(lf, k, a[k])
+                        step_lb[k][a[k]] = val
+                        nodes += 1
+                        if k == 0 and z_node is not None:
+                            below[a[0]] = self._later_step_bounds(z_node, lf)
+                    if val >= cutoff:
+                        pruned = True
+                        break
+                if pruned:
+                    continue
+                extra = below[a[0]]
+                if extra is not None and n > 1:
+                    gain = max(extra[k - 1, a[k]] for k in range(1, n))
+                    if step_lb[0][a[0]] + gain >= cutoff:
+                        continue
+            res = self._solve_leaf(lf, a)
+            nodes += 1
+            if res.status == SOLVED and res.objective < best:
+                best, best_a, best_z = res.objective, a, res.z
+                cutoff = best - self._gap(best)
+            unresolved |= res.status == FAILED
+        status = "optimal"
+        if unresolved:
+            status = "time_limited"
+        if best_a is None and not unresolved:
+            status = "infeasible"
+        return self._finish(status, best_a, best_z, best, nodes, min(proven_lb, best))
+
+    def _step_bound(
+        self, lf: LocalFootholds, step: int, i: int
+    ) -> tuple[float, np.ndarray | None]:
+        """Lower bound for every leaf with foothold i at `step`: the QP with that step fixed
+        and the others relaxed to the box around all footholds (+inf if infeasible; -inf if
+        the QP could not be solved, which proves nothing), and its solution."""
+        eng = self.engine
+        for k in range(eng.N):
+            if k == step:
+                eng.set_rows(k, lf.F[i], self._c[i])
+            else:
+                eng.set_rows(k, self._fbox, self._cbox)
+        res = eng.solve()
+        if res.status == SOLVED:
+            return res.objective, res.z
+        return (np.inf if res.status == INFEASIBLE else -np.inf), None
+
+    def _branch_and_bound(self, lf, f_b, lb_step, ok_first, ok_pairs, incumbent, deadline,
+                          nodes) -> SearchResult:
+        eng = self.engine
+        n = eng.N
+        best, best_a, best_z = np.inf, None, None
+        unresolved = False
+        seeds = []
+        if incumbent is not None:
+            seeds.append(tuple(incumbent))
+        greedy = tuple(int(np.argmin(lb_step[k])) for k in range(n))
+        if greedy not in seeds:
+            seeds.append(greedy)
+        for a in seeds:
+            res = self._solve_leaf(lf, a)
+            nodes += 1
+            if res.status == SOLVED and res.objective < best:
+                best, best_a, best_z = res.objective, a, res.z
+            unresolved |= res.status == FAILED
+        counter = itertools.count()
+        heap: list[tuple[float, int, tuple[int, ...]]] = [(f_b, next(counter), ())]
+        seen = set(seeds)
+        while heap:
+            bound, _, prefix = heapq.heappop(heap)
+            if bound >= best - self._gap(best):
+                heap.clear()
+                break
+            if time.perf_counter() > deadline:
+                return self._finish("time_limited", best_a, best_z, best, nodes, bound)
+            k = len(prefix)
+            for step, i in enumerate(prefix):
+                eng.set_rows(step, lf.F[i], self._c[i])
+            for step in range(k + 1, n):
+                eng.set_rows(step, self._fbox, self._cbox)
+            for i in np.argsort(lb_step[k]):
+                i = int(i)
+                if not (ok_first[i] if k == 0 else ok_pairs[k - 1][prefix[-1], i]):
+                    continue
+                child_lb = max(bound, f_b + lb_step[k, i])
+                if child_lb >= best - self._gap(best):
+                    continue
+                child = (*prefix, i)
+                if len(child) == n and child in seen:
+                    continue
+                eng.set_rows(k, lf.F[i], self._c[i])
+                res = eng.solve()
+                nodes += 1
+                if res.status == FAILED:
+                    unresolved = True
+                    continue
+                if res.status != SOLVED:
+                    continue
+                if len(child) == n:
+                    if res.objective < best:
+                        best, best_a, best_z = res.objective, child, res.z
+                elif res.objective < best - self._gap(best):
+                    heapq.heappush(heap, (max(res.objective, child_lb), next(counter), child))
+        status = "optimal"
+        if unresolved:
+            status = "time_limited"
+        if best_a is None and not unresolved:
+            status = "infeasible"
+        return self._finish(status, best_a, best_z, best, nodes, best)
+
+    @staticmethod
+    def _finish(status, best_a, best_z, best, nodes, lower) -> SearchResult:
+        return SearchResult(status, best_a, best_z, float(best), nodes, float(lower))
+
+    def exhaustive(self, qp: CondensedQp, lf: LocalFootholds) -> SearchResult:
+        """Reference: solve every assignment's QP (M^N of them) and keep the best."""
+        eng = self.engine
+        n, m = eng.N, lf.count
+        if m == 0:
+            return SearchResult("infeasible", None, None, np.inf, 0, np.inf)
+        self._prepare(qp, lf)
+        best, best_a, best_z, nodes = np.inf, None, None, 0
+        for a in itertools.product(range(m), repeat=n):
+            res = self._solve_leaf(lf, a)
+            nodes += 1
+            if res.status == SOLVED and res.objective < best:
+                best, best_a, best_z = res.objective, a, res.z
+        status = "optimal" if best_a is not None else "infeasible"
+        return SearchResult(status, best_a, best_z, float(best), nodes, float(best))
+
+
+
+def _bounds_algebra_n2(
+    s: list[list[float]],
+) -> tuple[list[list[list[float]]] | None, float]:
+    """For N = 2 and the 4x4 footstep Hessian S (nested lists): Cholesky factors of the two
+    Schur complements S_1, S_2 and of the blocks S_11, S_22, and gamma = lambda_min of
+    blockdiag(L_kk^-1) S blockdiag(L_kk^-T). Returns (None, 0) if S is not positive definite."""
+
+    def blk(i: int, j: int) -> tuple[float, float, float, float]:
+        return s[i][j], s[i][j + 1], s[i + 1][j], s[i + 1][j + 1]
+
+    def inv(a: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        det = a[0] * a[3] - a[1] * a[2]
+        return a[3] / det, -a[1] / det, -a[2] / det, a[0] / det
+
+    def mul(a, b):  # 2x2 products, row-major tuples
+        return (a[0] * b[0] + a[1] * b[2], a[0] * b[1] + a[1] * b[3],
+                a[2] * b[0] + a[3] * b[2], a[2] * b[1] + a[3] * b[3])
+
+    def chol(a):
+        if a[0] <= 0.0:
+            return None
+        l11 = math.sqrt(a[0])
+        l21 = 0.5 * (a[1] + a[2]) / l11
+        d = a[3] - l21 * l21
+        if d <= 0.0:
+            return None
+        return l11, l21, math.sqrt(d)
+
+    s11, s12, s21, s22 = blk(0, 0), blk(0, 2), blk(2, 0), blk(2, 2)
+    try:
+        t1 = mul(mul(s12, inv(s22)), s21)
+        t2 = mul(mul(s21, inv(s11)), s12)
+    except ZeroDivisionError:
+        return None, 0.0
+    mats = [tuple(x - y for x, y in zip(s11, t1, strict=True)),
+            tuple(x - y for x, y in zip(s22, t2, strict=True)), s11, s22]
+    factors = [chol(a) for a in mats]
+    if any(f is None for f in factors):
+        return None, 0.0
+    out = [[[f[0], 0.0], [f[1], f[2]]] for f in factors]
+    # T S T' = [[I, X], [X', I]] with X = L_11^-1 S_12 L_22^-T, whose eigenvalues are
+    # 1 -+ singular values of X: gamma = 1 - sigma_max(X), in closed form for 2x2 X
+    f1, f2 = factors[2], factors[3]
+    li1 = (1.0 / f1[0], 0.0, -f1[1] / (f1[0] * f1[2]), 1.0 / f1[2])
+    li2t = (1.0 / f2[0], -f2[1] / (f2[0] * f2[2]), 0.0, 1.0 / f2[2])
+    x = mul(mul(li1, s12), li2t)
+    fro = x[0] ** 2 + x[1] ** 2 + x[2] ** 2 + x[3] ** 2
+    det = x[0] * x[3] - x[1] * x[2]
+    smax = math.sqrt(max(0.5 * (fro + math.sqrt(max(fro * fro - 4.0 * det * det, 0.0))), 0.0))
+    gamma = 1.0 - smax
+    return out, gamma
+
+
+def _unravel(flat: int, m: int, n: int) -> tuple[int, ...]:
+    """Row-major index `flat` of an (m,)*n array as a tuple (step 1 first)."""
+    out = [0] * n
+    for k in range(n - 1, -1, -1):
+        flat, out[k] = divmod(flat, m)
+    return tuple(out)

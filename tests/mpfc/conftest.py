@@ -1,0 +1,28 @@
+"""Shared fixtures for the MPFC algorithm tests (the repo root goes on sys.path)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+for path in (ROOT, Path(__file__).resolve().parent):  # the repo, and mpfc_test_helpers
+    if str(path) not in sys.path:
+        sys.path.insert(0, str(path))
+
+from processes.mpfc import MpfcParams  # noqa: E402
+from processes.mpfc.problem import MpfcModel  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def params() -> MpfcParams:
+    """Hardware parameters of Table V, from hw_config/gains/mpfc.yaml."""
+    return MpfcParams.from_yaml(ROOT / "hw_config" / "gains" / "mpfc.yaml", "hardware")
+
+
+@pytest.fixture(scope="session")
+def model(params: MpfcParams) -> MpfcModel:
+    """Constant matrices for the hardware parameters."""
+    return MpfcModel(params)

@@ -1,0 +1,52 @@
+"""Test helpers: run the solver on a generated instance and compute the reference optimum."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from processes.mpfc import MpfcParams, MpfcSolution, MpfcSolver
+from processes.mpfc.gurobi_backend import exhaustive_reference
+from processes.mpfc.instances import Instance
+from processes.mpfc.problem import build_miqp
+
+
+def solve(solver: MpfcSolver, inst: Instance, **over) -> MpfcSolution:
+    """Call the public API with the instance's arguments (overridable)."""
+    args = dict(x_alip=inst.x_alip, stance=inst.stance, p_stance=inst.p_stance,
+                t_remaining_s=inst.t_remaining_s, vdes=inst.vdes, footholds=inst.footholds,
+                yaw=inst.yaw)
+    args.update(over)
+    return solver.solve(**args)
+
+
+def reference(solver: MpfcSolver) -> tuple[float, tuple[int, ...] | None]:
+    """Exhaustive optimum of the solver's last problem in the literal big-M form (15)-(20),
+    with the assignment mapped to indices of the caller's foothold list."""
+    d = build_miqp(solver.model, solver.last_inputs, solver.last_local)
+    best, a, failed = exhaustive_reference(d)
+    assert failed == 0
+    if a is None:
+        return best, None
+    return best, tuple(int(solver.last_local.index[i]) for i in a)
+
+
+def rel_err(a: float, b: float) -> float:
+    """Relative difference; objectives below 1 are compared absolutely (the objective is a
+    difference of large terms, so its absolute accuracy is what a QP can give)."""
+    return abs(a - b) / max(abs(a), abs(b), 1.0)
+
+
+def with_params(params: MpfcParams, **changes) -> MpfcParams:
+    """A validated copy of params with some fields changed."""
+    p = dataclasses.replace(params, **changes)
+    p.validate()
+    return p
+
+
+def objective_matches(sol: MpfcSolution, ref: float, tol: float = 1e-6) -> bool:
+    """The search's verdict agrees with the reference (both infeasible, or equal values)."""
+    if not np.isfinite(ref):
+        return sol.status == "infeasible"
+    return sol.status == "optimal" and rel_err(sol.objective, ref) <= tol

@@ -1,0 +1,71 @@
+"""Footholds: halfspace form, tilted planes, the stance frame transform and pruning."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from processes.mpfc import Foothold
+from processes.mpfc.footholds import WorldFootholds, yaw_rotation
+
+
+def test_from_polygon_contains_interior_points_on_its_plane() -> None:
+    sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    fh = Foothold.from_polygon(sq, normal=(0.1, 0.0, 1.0), offset=0.3)
+    p = np.array([0.5, 0.5, 0.0])
+    p[2] = fh.height_at(p[:2])
+    assert np.isclose(p[2], 0.3 - 0.05)
+    assert fh.contains(p)
+    assert not fh.contains(p + np.array([0.0, 0.0, 0.01]))  # off the plane
+    assert not fh.contains(np.array([1.2, 0.5, fh.height_at([1.2, 0.5])]))
+    assert np.allclose(np.linalg.norm(fh.A, axis=1), 1.0)  # (20) needs unit rows
+
+
+def test_general_halfspaces_project_to_the_right_polygon() -> None:
+    """A tilted wall (non-zero z in A) is eliminated through the plane correctly."""
+    # plane z = 0.5 x; the wall x + z <= 1.5 becomes 1.5 x <= 1.5 on the plane
+    a = np.array([[1.0, 0, 1.0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])
+    b = np.array([1.5, 0.0, 1.0, 0.0])
+    fh = Foothold(a, b, normal=np.array([-0.5, 0.0, 1.0]), offset=0.0)
+    v = fh.vertices_xy
+    assert np.isclose(v[:, 0].max(), 1.0) and np.isclose(v[:, 0].min(), 0.0)
+    assert len(v) == 4
+
+
+def test_degenerate_input_is_rejected() -> None:
+    with pytest.raises(ValueError):
+        Foothold.from_polygon(np.array([[0, 0], [1, 1]], dtype=float))
+    with pytest.raises(ValueError):
+        Foothold(np.eye(3), np.ones(3), normal=np.zeros(3), offset=0.0)
+
+
+def test_local_frame_rotates_and_translates_consistently() -> None:
+    """A point in a foothold stays inside after mapping world -> stance frame."""
+    rng = np.random.default_rng(2)
+    fh = Foothold.from_polygon(np.array([[2, 1], [2.4, 1], [2.4, 1.5], [2, 1.5]], dtype=float),
+                               normal=(0.05, -0.1, 1.0), offset=0.2)
+    world = WorldFootholds([fh], 0.2)
+    for _ in range(5):
+        p_s = np.array([*rng.uniform(1.0, 2.0, 2), rng.uniform(-0.1, 0.1)])
+        yaw = rng.uniform(-np.pi, np.pi)
+        lf = world.local(p_s, yaw, 20, 3.0)
+        p_w = np.array([2.2, 1.2, 0.0])
+        p_w[2] = fh.height_at(p_w[:2])
+        p_l = yaw_rotation(yaw).T @ (p_w - p_s)
+        assert np.all(lf.F[0] @ p_l[:2] <= lf.c[0] + 1e-12)
+        assert np.isclose(lf.alpha[0] + lf.beta[0] @ p_l[:2], p_l[2])
+        a3, b3, n3, d3 = lf.three_d()
+        real = np.isfinite(b3[0])
+        assert np.all(a3[0][real] @ p_l <= b3[0][real] + 1e-12)
+        assert np.isclose(n3[0] @ p_l, d3[0])
+
+
+def test_pruning_keeps_the_nearest_within_distance() -> None:
+    fhs = [Foothold.from_polygon(np.array([[x, 0], [x + 0.2, 0], [x + 0.2, 0.2], [x, 0.2]]))
+           for x in (0.0, 0.5, 1.0, 3.0, -0.7)]
+    steep = Foothold.from_polygon(np.array([[0, 0], [1, 0], [1, 1.0]]), normal=(1, 0, 0.05))
+    world = WorldFootholds([*fhs, steep], 0.2)
+    lf = world.local(np.array([0.1, 0.1, 0.0]), 0.0, 3, 2.0)
+    assert list(lf.index) == [0, 1, 4]  # far one (index 3) and the steep one dropped
+    lf = world.local(np.array([0.1, 0.1, 0.0]), 0.0, 10, 2.0)
+    assert sorted(lf.index) == [0, 1, 2, 4]

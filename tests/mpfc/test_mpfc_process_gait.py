@@ -1,0 +1,114 @@
+"""The MPFC node, fed robot states in the deterministic harness, keeps the gait of Fig. 4."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from lcmtypes import mpfc_output_t, robot_state_t
+from processes.kinematics import load_model
+from processes.mpfc.process import GAIT_DS, GAIT_SS, make_node
+from runtime.config_types import ProcessConfig
+from runtime.errors import ConfigError
+from runtime.harness import Binding, Harness
+from runtime.node import Node
+
+
+class StateReplay(Node):
+    """Publishes a standing Cassie's state at 200 Hz, CoM drifting forward at ``speed``."""
+
+    name = "replay"
+    outputs = {"state": robot_state_t}
+
+    def __init__(self, speed: float) -> None:
+        self.m = load_model()
+        d = mujoco.MjData(self.m)
+        mujoco.mj_resetDataKeyframe(self.m, d, 0)
+        self.q0 = d.qpos.copy()
+        self.speed = speed
+        self.period_s = 0.005
+
+    def tick(self, ctx, inbox) -> None:  # type: ignore[no-untyped-def]
+        t = ctx.now_utime * 1e-6
+        q = self.q0.copy()
+        q[0] += self.speed * t
+        v = np.zeros(self.m.nv)
+        v[0] = self.speed
+        msg = robot_state_t()
+        msg.header.utime = ctx.now_utime
+        msg.num_positions, msg.num_velocities, msg.num_motors = self.m.nq, self.m.nv, 10
+        msg.q, msg.v, msg.motor_torque = q.tolist(), v.tolist(), [0.0] * 10
+        ctx.publish("state", msg)
+
+
+def _proc(**params) -> ProcessConfig:  # type: ignore[no-untyped-def]
+    from runtime.config import HW_CONFIG_DIR
+
+    return ProcessConfig(
+        name="mpfc",
+        host="laptop",
+        module="processes.mpfc.process",
+        source_file=HW_CONFIG_DIR / "processes.yaml",
+        params=params,
+        gains_file=HW_CONFIG_DIR / "gains" / "mpfc.yaml",
+    )
+
+
+def _run(seconds: float, **params):  # type: ignore[no-untyped-def]
+    from runtime.config import HW_CONFIG_DIR
+
+    profile = type("P", (), {"resolve": lambda self, p: HW_CONFIG_DIR / p})()
+    node = make_node(_proc(**params), profile)
+    h = Harness(
+        [
+            Binding(StateReplay(0.3), inputs={}, outputs={"state": "S"}),
+            Binding(
+                node,
+                inputs={"state": "S", "footholds": "F", "elevation_map": "E", "command": "C"},
+                outputs={"plan": "P", "debug": "D"},
+            ),
+        ]
+    )
+    plans: list[mpfc_output_t] = []
+    h.tap("P", lambda t, m: plans.append(m))
+    h.run_until(int(seconds * 1e6))
+    return node, plans
+
+
+def test_gait_alternates_stance_with_step_durations_within_bounds():
+    node, plans = _run(3.0, footholds="flat")
+    assert len(plans) == 601
+    assert all(p.solve_status == 0 for p in plans)
+    switches = sorted({round(p.prev_switch_time_s, 6) for p in plans})
+    steps = np.diff(switches)
+    p = node.params
+    # each MPFC stance phase = double stance T_ds + single stance in [t_min, t_max] (Sec. IV-D)
+    assert len(steps) >= 6
+    assert np.all(steps >= p.t_ds_s + p.t_ss_min_s - 0.006)
+    assert np.all(steps <= p.t_ds_s + p.t_ss_max_s + 0.006)
+    stances = [pl.stance for pl in plans]
+    changes = [i for i in range(1, len(stances)) if stances[i] != stances[i - 1]]
+    assert len(changes) == len(switches) - 1
+    # double stance lasts T_ds after each touchdown, then single stance
+    for pl in plans:
+        t = pl.header.utime * 1e-6
+        expect = GAIT_DS if t - pl.prev_switch_time_s < p.t_ds_s else GAIT_SS
+        assert pl.gait_state == expect[pl.stance]
+        assert all(math.isfinite(x) for x in pl.next_footstep_world)
+        assert abs(pl.ankle_torque) <= p.ankle_torque_max_nm + 1e-6
+
+
+def test_footsteps_land_on_ground_truth_stones():
+    node, plans = _run(2.0, footholds="terrain:stones")
+    assert node.footholds, "the stones terrain gave no footholds"
+    last = plans[-1]
+    step = np.array(last.next_footstep_world)
+    assert any(f.contains(step, tol=1e-4) for f in node.footholds)
+
+
+def test_bad_foothold_source_names_the_key():
+    with pytest.raises(ConfigError, match=r"processes\.mpfc\.params\.footholds"):
+        _run(0.1, footholds="lidar")
