@@ -1,0 +1,237 @@
+"""``OscController``: the whole OSC tick (mode logic, tasks, QP (14), safety), no LCM inside.
+
+Modes (as in ``torque_command_t.mode``): 0 walking, 1 standing, 2 safe. The controller starts
+standing; it hands over to walking when the command asks to walk and a fresh MPFC plan is in
+double stance (the robot is on both feet); it goes back to standing when the command or the
+plan asks to stand and both feet are down. A NaN state, a fall or a missing plan while
+walking latches safe mode (joint damping). Every published torque is finite and within the
+joint limits.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .model import CassieModel
+from .qp import OscQP
+from .safety import SafetyMonitor
+from .standing import StandingController
+from .tasks import OscParams, TaskLog
+from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, WalkingController
+from .walking import STANDING as GAIT_STANDING
+
+WALKING, STANDING, SAFE = 0, 1, 2
+MODE_NAMES = {WALKING: "walking", STANDING: "standing", SAFE: "safe"}
+#: consecutive failed QP solves (previous torques reused) before safe mode
+MAX_QP_FAILURES = 20
+
+
+@dataclass
+class OscDebug:
+    """What one tick did: the fields of ``osc_debug_t`` (one object, rewritten every tick)."""
+
+    mode: int = STANDING
+    status: str = ""
+    tick_ms: float = 0.0
+    solve_ms: float = 0.0
+    qp_status: int = 0
+    qp_iterations: int = 0
+    task_names: list[str] = field(default_factory=list)
+    task_errors: list[float] = field(default_factory=list)
+
+
+def _plan_ok(plan: Any) -> bool:
+    """A plan the OSC can act on: known gait state and stance, finite numbers."""
+    try:
+        vals = [*plan.stance_foot_world, *plan.next_footstep_world, plan.stance_yaw,
+                plan.prev_switch_time_s, plan.next_switch_time_s, plan.ankle_torque]
+        return (0 <= int(plan.gait_state) <= 4 and int(plan.stance) in (0, 1)
+                and len(vals) == 10 and all(math.isfinite(float(x)) for x in vals))
+    except (AttributeError, TypeError, ValueError):
+        return False
+
+
+def _plan_time(plan: Any) -> float | None:
+    """Sim time (s) of the state a plan was computed from (its header.utime)."""
+    if plan is None:
+        return None
+    hdr = getattr(plan, "header", None)
+    return None if hdr is None else float(hdr.utime) * 1e-6
+
+
+class OscController:
+    """The OSC of Section III-E / V: call ``update`` once per robot state."""
+
+    def __init__(self, params: OscParams | None = None, model: CassieModel | None = None,
+                 gains_file: str | Path | None = None) -> None:
+        self.params = params if params is not None else OscParams.from_yaml(gains_file)
+        self.model = model if model is not None else CassieModel()
+        m = self.model
+        self.qp = OscQP(m, self.params.qp)
+        self.rows = self.qp.rows
+        self.log = TaskLog()
+        self.standing = StandingController(self.params.standing, m.nv)
+        self.walking = WalkingController(self.params.walking, m.nv)
+        self.safety = SafetyMonitor(self.params.safety, m.motor_dof, m.u_max)
+        self.mode = STANDING
+        self.u = np.zeros(m.nu)
+        self.qp_failures = 0
+        self.debug = OscDebug()
+        self.stance = np.ones(4, dtype=bool)
+        self.waiting = False  # walking asked, plan not yet in double stance
+
+    # ------------------------------------------------------------------ public
+    def reset(self) -> None:
+        """Clear a latched fault and restart from standing (operator action)."""
+        self.safety.reset()
+        self.mode = STANDING
+        self.standing.started = False
+        self.walking.reset()
+        self.qp_failures = 0
+
+    def update(self, t_s: float, q: np.ndarray, v: np.ndarray, plan: Any | None = None,
+               command: Any | None = None) -> tuple[np.ndarray, OscDebug]:
+        """One tick: joint-side torques (10, actuator order, N m) and debug info.
+
+        ``plan`` is an ``mpfc_output_t`` (or any object with its fields), ``command`` a
+        ``command_t`` (mode 0 walk, 1 stand; yaw_rate). None means not received yet.
+        """
+        t0 = time.perf_counter()
+        dbg = self.debug
+        self.log.reset()
+        fault = self.safety.check_state(q, v)
+        if fault is not None:
+            return self._safe(q, v, fault, t0)
+        m = self.model
+        try:
+            m.update(q, v)
+            fault = self._choose_mode(t_s, plan, command)
+            if fault is not None:
+                return self._safe(q, v, fault, t0)
+            if self.mode == STANDING and not self.standing.started:
+                self.standing.start(t_s, m, q)
+            self.rows.reset()
+            if self.mode == WALKING:
+                yaw_rate = float(command.yaw_rate) if command is not None else 0.0
+                if not math.isfinite(yaw_rate):
+                    yaw_rate = 0.0  # a garbled radio command must not reach the QP
+                stance = self.walking.add_tasks(self.rows, self.log, self.qp, m, q, v, t_s,
+                                                plan, yaw_rate)
+            else:
+                self.qp.ankle_index = -1
+                stance = self.standing.add_tasks(self.rows, self.log, m, q, v, t_s)
+            self.stance = stance
+            fz_min = self.params.qp.standing_fz_min if self.mode == STANDING else 0.0
+            res = self.qp.solve(self.rows, stance, fz_min)
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:
+            # a degenerate state (singular matrices, a malformed plan): damp, never crash
+            self.safety.latch(f"controller error: {type(e).__name__}: {e}")
+            return self._safe(q, v, self.safety.fault or "controller error", t0)
+        if res.status == 1:
+            self.qp_failures = 0
+            np.clip(res.u, -m.u_max, m.u_max, out=self.u)
+            status = MODE_NAMES[self.mode]
+            if self.waiting:
+                status += " (walk asked: waiting for a double-stance plan to hand over)"
+            elif self.mode == WALKING and command is not None and int(command.mode) != 0:
+                status += " (stand asked: waiting for double stance with the CoM at rest)"
+        else:
+            self.qp_failures += 1
+            status = f"{MODE_NAMES[self.mode]}: QP status {res.status}, previous torques"
+            if self.qp_failures >= MAX_QP_FAILURES:
+                self.safety.latch(f"QP failed {self.qp_failures} ticks in a row")
+                return self._safe(q, v, self.safety.fault or "QP failure", t0)
+        if not math.isfinite(float(self.u.sum())):
+            self.safety.latch("non-finite torque from the QP")
+            return self._safe(q, v, self.safety.fault or "non-finite torque", t0)
+        dbg.mode = self.mode
+        dbg.status = status
+        dbg.qp_status = res.status
+        dbg.qp_iterations = res.iterations
+        dbg.solve_ms = res.solve_s * 1e3
+        dbg.task_names = list(self.log.names)
+        dbg.task_errors = list(self.log.errors)
+        dbg.tick_ms = (time.perf_counter() - t0) * 1e3
+        return self.u.copy(), dbg
+
+    # ------------------------------------------------------------------ internals
+    def _choose_mode(self, t: float, plan: Any | None, command: Any | None) -> str | None:
+        """Standing <-> walking hand-over; a fault string when walking lost its plan."""
+        want_walk = command is not None and int(command.mode) == 0
+        if plan is not None and not _plan_ok(plan):
+            if self.mode == WALKING:
+                self.safety.latch("invalid MPFC plan (non-finite or unknown gait state)")
+                return self.safety.fault
+            plan = None  # standing: never hand over to a bad plan
+        plan_t = _plan_time(plan)
+        fresh = plan is not None and (plan_t is None or
+                                      t - plan_t <= self.params.safety.plan_timeout_s)
+        plan_walks = plan is not None and int(plan.gait_state) != GAIT_STANDING
+        if self.mode == STANDING:
+            ok = want_walk and fresh and plan_walks and int(getattr(plan, "solve_status", 0)) != 3
+            # hand over only in double stance: the robot stands on both feet, so does the plan
+            if ok and int(plan.gait_state) in (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT):
+                self.mode = WALKING
+                self.walking.reset()
+            self.waiting = ok and self.mode == STANDING
+        elif self.mode == WALKING:
+            # a plan without a header (a bare object, in tests) counts as fresh
+            fault = self.safety.check_plan(t, None if plan is None else
+                                           (t if plan_t is None else plan_t))
+            if fault is not None:
+                return fault
+            stand_now = (not want_walk) or not plan_walks
+            # back to standing only in double stance with both feet really down (standing puts
+            # force on all four points; a foot still in the air would throw the robot) and the
+            # CoM nearly at rest over the feet (blade feet cannot stop a moving CoM: the plan
+            # has to bring it to rest first, by stepping)
+            if (stand_now and int(plan.gait_state) not in (0, 1)
+                    and t >= float(plan.prev_switch_time_s) + 0.03 and self._feet_down()
+                    and self._com_settled()):
+                self.mode = STANDING
+                self.standing.started = False
+        return None
+
+    def _feet_down(self, dz: float = 0.015, vz: float = 0.15) -> bool:
+        """Both blades down (kinematic check, no contact sensing): every contact point within
+        ``dz`` of the lowest one and moving slower than ``vz`` vertically."""
+        p, v = self.model.p_contact_l, self.model.v_contact_l
+        z0 = min(pt[2] for pt in p)
+        return all(pt[2] - z0 < dz for pt in p) and all(abs(vv[2]) < vz for vv in v)
+
+    def _com_settled(self, margin: float = 0.02) -> bool:
+        """The CoM can be stopped without a step: its instantaneous capture point
+        com + v / omega (omega = sqrt(g / z), LIP) lies inside the box of the four contact
+        points shrunk by ``margin`` (world x, y). Blade feet give only a short box fore-aft."""
+        m = self.model
+        pts = m.p_contact_l
+        z = m.com_l[2] - 0.25 * sum(p[2] for p in pts)
+        inv_omega = math.sqrt(max(z, 0.3) / 9.81)
+        for a in range(2):
+            lo = min(p[a] for p in pts) + margin
+            hi = max(p[a] for p in pts) - margin
+            cp = m.com_l[a] + m.com_vel_l[a] * inv_omega
+            if not lo < cp < hi:
+                return False
+        return True
+
+    def _safe(self, q: np.ndarray, v: np.ndarray, reason: str, t0: float) -> tuple[
+            np.ndarray, OscDebug]:
+        self.mode = SAFE
+        self.u[:] = self.safety.damping(v)
+        dbg = self.debug
+        dbg.mode = SAFE
+        dbg.status = f"safe mode (joint damping): {reason}"
+        dbg.qp_status = 0
+        dbg.qp_iterations = 0
+        dbg.solve_ms = 0.0
+        dbg.task_names = []
+        dbg.task_errors = []
+        dbg.tick_ms = (time.perf_counter() - t0) * 1e3
+        return self.u.copy(), dbg

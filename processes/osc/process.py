@@ -1,0 +1,113 @@
+"""The OSC process shell: a ``Node`` that feeds robot states to ``OscController``.
+
+Driven by each newest ``state`` (robot_state_t, CASSIE_STATE); reads the newest ``plan``
+(mpfc_output_t) and ``command`` (command_t); publishes ``torque`` (torque_command_t, joint-side
+N m in actuator order) and ``debug`` (osc_debug_t), both stamped with the state's utime.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcmtypes import command_t, mpfc_output_t, osc_debug_t, robot_state_t, torque_command_t
+from runtime.config_types import ProcessConfig, Profile
+from runtime.errors import ConfigError
+from runtime.node import Context, Inbox, Node
+
+from .controller import SAFE, OscController
+from .model import CassieModel
+from .tasks import DEFAULT_GAINS_FILE, OscParams
+
+_KNOWN_PARAMS = ("gains_file",)
+
+
+class OscNode(Node):
+    """Operational space controller (Section III-E): state in, torques out."""
+
+    name = "osc"
+    inputs = {"state": robot_state_t, "plan": mpfc_output_t, "command": command_t}
+    outputs = {"torque": torque_command_t, "debug": osc_debug_t}
+    trigger_role = "state"
+    trigger_policy = "newest"
+
+    def __init__(self, params: OscParams) -> None:
+        self.params = params
+        self.controller: OscController | None = None
+        self._torque = torque_command_t()
+        self._debug = osc_debug_t()
+        self._status = "starting"
+
+    def setup(self, ctx: Context) -> None:
+        """Build the controller (model copy, QP solvers) before the first state arrives."""
+        self.controller = OscController(self.params, CassieModel())
+        m = self.controller.model
+        self._nq, self._nv = m.nq, m.nv
+        self._torque.num_motors = m.nu
+
+    def tick(self, ctx: Context, inbox: Inbox) -> None:
+        """One robot state in, one torque command and one debug message out."""
+        state: Any = inbox.trigger() or inbox.latest("state")
+        if state is None:
+            return
+        ctrl = self.controller
+        assert ctrl is not None
+        q = np.asarray(state.q, dtype=float)
+        v = np.asarray(state.v, dtype=float)
+        if q.shape != (self._nq,) or v.shape != (self._nv,):
+            # a malformed state is treated like a NaN state: safe mode, finite torques
+            q = np.full(self._nq, np.nan)
+            v = np.zeros(self._nv)
+        t = float(state.header.utime) * 1e-6
+        u, dbg = ctrl.update(t, q, v, inbox.latest("plan"), inbox.latest("command"))
+        if not np.all(np.isfinite(u)):  # defence in depth: never publish a NaN torque
+            u = np.zeros_like(u)
+        cmd = self._torque
+        cmd.header.utime = state.header.utime
+        cmd.torque = u.tolist()
+        cmd.mode = dbg.mode
+        cmd.status = dbg.status
+        ctx.publish("torque", cmd)
+        d = self._debug
+        d.header.utime = state.header.utime
+        d.tick_ms = dbg.tick_ms
+        d.solve_ms = dbg.solve_ms
+        d.qp_status = dbg.qp_status
+        d.qp_iterations = dbg.qp_iterations
+        d.mode = dbg.mode
+        d.status = dbg.status
+        d.num_tasks = len(dbg.task_names)
+        d.task_names = list(dbg.task_names)
+        d.task_errors = list(dbg.task_errors)
+        ctx.publish("debug", d)
+        self._status = dbg.status
+
+    def status(self) -> str:
+        """The controller's last status line (mode and, in safe mode, the reason)."""
+        return self._status
+
+    @property
+    def in_safe_mode(self) -> bool:
+        """True once a fault has latched the controller into joint damping."""
+        return self.controller is not None and self.controller.mode == SAFE
+
+
+def make_node(proc: ProcessConfig, profile: Profile) -> Node:
+    """Build the OSC node: gains from ``proc.gains_file`` (or ``params.gains_file``), else
+    ``hw_config/gains/osc.yaml``."""
+    for key in proc.params:
+        if key not in _KNOWN_PARAMS:
+            raise ConfigError(str(proc.source_file), proc.key("params", key), "unknown parameter",
+                              ", ".join(_KNOWN_PARAMS))
+    path = proc.gains_file
+    if path is None and "gains_file" in proc.params:
+        raw = proc.params["gains_file"]
+        if not isinstance(raw, str):
+            raise ConfigError(str(proc.source_file), proc.key("params", "gains_file"),
+                              f"not a path: {raw!r}", "a path relative to hw_config")
+        path = profile.resolve(raw)
+    if path is None:
+        candidate = profile.resolve("gains/osc.yaml")
+        path = candidate if candidate.exists() else DEFAULT_GAINS_FILE
+    return OscNode(OscParams.from_yaml(path))

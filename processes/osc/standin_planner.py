@@ -1,0 +1,130 @@
+"""A simple ALIP foot-placement planner that stands in for MPFC in OSC tests and benchmarks.
+
+Not the MPFC of Section IV: fixed step timing (T_ss, T_ds), flat ground, no footholds, zero
+ankle torque. The next footstep is the one-step ALIP deadbeat placement that brings the
+angular momentum about the contact point at the end of the next step to that of a periodic gait
+at the desired velocity and step width. It emits ``mpfc_output_t`` messages so the OSC sees
+exactly what it would get from the real planner.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from lcmtypes import mpfc_output_t
+
+from .model import LEFT, RIGHT, CassieModel
+
+_G = 9.81
+
+
+class StandInPlanner:
+    """Step timing and ALIP foot placement; call ``plan(t, q, v)`` at the planner's rate."""
+
+    def __init__(self, model: CassieModel, vdes: tuple[float, float] = (0.0, 0.0),
+                 step_width: float = 0.26, H: float = 0.85, t_ss: float = 0.3,
+                 t_ds: float = 0.1) -> None:
+        self.m = model
+        self.vdes = np.array(vdes, dtype=float)
+        self.w = step_width
+        self.H = H
+        self.t_ss, self.t_ds = t_ss, t_ds
+        self.lam = math.sqrt(_G / H)  # ALIP natural frequency
+        self.stance = LEFT
+        self.single = False
+        self.t_switch: float | None = None
+        self.t_next = 0.0
+        self.stance_pos = np.zeros(3)
+        self.next_pos = np.zeros(3)
+
+    def _foot(self, side: int) -> np.ndarray:
+        """A foot's contact midpoint, on the flat ground (z = 0) this stand-in assumes."""
+        p = self.m.foot_center(side).copy()
+        p[2] = 0.0
+        return p
+
+    def plan(self, t: float, q: np.ndarray, v: np.ndarray) -> mpfc_output_t:
+        """Advance the gait clock to t and return the plan for the state (q, v)."""
+        m = self.m
+        m.update(q, v)
+        if self.t_switch is None:  # start: double stance, then left single stance
+            self.t_switch = t
+            self.t_next = t + self.t_ds
+            self.single = False
+            self.stance = LEFT
+            self.stance_pos = self._foot(LEFT)
+        if self.single and t >= self.t_next:  # planned touchdown: the swing foot lands
+            self.stance = 1 - self.stance
+            self.stance_pos = self._foot(self.stance)
+            self.single = False
+            self.t_switch = self.t_next
+            self.t_next = self.t_switch + self.t_ds
+        elif not self.single and t >= self.t_next:  # liftoff of the other foot
+            self.single = True
+            self.t_switch = self.t_next
+            self.t_next = self.t_switch + self.t_ss
+
+        # ALIP state about the stance foot: angular momentum about the contact point,
+        # L = L_com + m (c - p) x v_c (the ALIP's state, Section III-A).
+        mass, H, l = m.mass, self.H, self.lam  # noqa: E741
+        mujoco.mj_subtreeVel(m.m, m.d)
+        L = m.d.subtree_angmom[m.pelvis_body] + mass * np.cross(m.com - self.stance_pos, m.com_vel)
+        x = m.com[0:2] - self.stance_pos[0:2]
+        Lx, Ly = float(L[0]), float(L[1])
+        # Predict to the next touchdown: the OSC's double stance has no horizontal CoM task, so
+        # the CoM coasts with constant L through it; single stance is the ALIP pendulum (1).
+        mH = mass * H
+        if not self.single:
+            tds = max(self.t_next - t, 0.0)
+            x = x + np.array([Ly, -Lx]) * (tds / mH)
+            T = self.t_ss
+        else:
+            T = max(self.t_next - t, 0.0)
+        c, s = math.cosh(l * T), math.sinh(l * T)
+        xT = c * x[0] + s * Ly / (mH * l)
+        LyT = mH * l * s * x[0] + c * Ly
+        yT = c * x[1] - s * Lx / (mH * l)
+        LxT = -mH * l * s * x[1] + c * Lx
+        # the foot that lands next is the stance of the next step: coast t_ds, then t_ss
+        nxt = 1 - self.stance
+        cn, sn = math.cosh(l * self.t_ss), math.sinh(l * self.t_ss)
+        Ly_des = mH * self.vdes[0]
+        sign = 1.0 if nxt == LEFT else -1.0
+        Lx_des = sign * mH * (self.w / 2) * l * math.tanh(l * self.t_ss / 2) - mH * self.vdes[1]
+        x0 = (Ly_des - cn * LyT) / (mH * l * sn) - LyT * self.t_ds / mH
+        y0 = (cn * LxT - Lx_des) / (mH * l * sn) + LxT * self.t_ds / mH
+        target = np.array([self.stance_pos[0] + xT - x0, self.stance_pos[1] + yT - y0, 0.0])
+        # keep the feet from crossing and from stretching too far
+        base = self.stance_pos[1]
+        off = target[1] - base
+        if nxt == RIGHT:
+            off = min(max(off, -0.6), -0.08)
+        else:
+            off = max(min(off, 0.6), 0.08)
+        target[1] = base + off
+        target[0] = self.stance_pos[0] + max(min(target[0] - self.stance_pos[0], 0.4), -0.4)
+        target[2] = self.stance_pos[2]
+        self.next_pos = target
+
+        msg = mpfc_output_t()
+        msg.header.utime = round(t * 1e6)
+        if self.single:
+            msg.gait_state = 0 if self.stance == LEFT else 1
+        else:
+            msg.gait_state = 2 if self.stance == LEFT else 3
+        msg.stance = self.stance
+        msg.stance_foot_world = self.stance_pos.tolist()
+        msg.next_footstep_world = target.tolist()
+        msg.next_footstep = (target - self.stance_pos).tolist()
+        msg.stance_yaw = 0.0
+        msg.prev_switch_time_s = float(self.t_switch)
+        msg.next_switch_time_s = float(self.t_next if self.single else self.t_next + self.t_ss)
+        msg.ankle_torque = 0.0
+        msg.desired_velocity = self.vdes.tolist()
+        msg.num_footsteps = 1
+        msg.footsteps_world = [target.tolist()]
+        msg.solve_status = 0
+        return msg

@@ -1,0 +1,317 @@
+"""Walking outputs from an MPFC plan (Section V): gait phase, CoM height plane, swing foot.
+
+* ``GaitPhase``: stance/swing and the liftoff/touchdown times from ``mpfc_output_t``.
+* ``ComHeightPlane``: the least-inclined plane through the current and next footholds (21) and
+  the CoM height reference (22), with the 100 Hz low-pass on (k_x, k_y) and the 2.5 cm clip.
+* ``SwingFootTrajectory``: the adaptive-clearance midpoint (Section V-B-1) and the swing QP (23)
+  as a polynomial with acceleration continuity to the previous tick's plan.
+* ``WalkingController``: the task rows of Tables VI-VII for one tick, and the MPFC ankle torque
+  as a cost (Section V-D).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.linalg import lapack
+
+from .model import LEFT, RIGHT, CassieModel
+from .qp import OscQP, TaskRows
+from .tasks import (
+    PelvisOrientationTask,
+    TaskLog,
+    WalkingParams,
+    add_com_task,
+    add_foot_pitch_task,
+    add_foot_position_task,
+    add_joint_task,
+)
+
+_gesv = lapack.dgesv
+
+SINGLE_LEFT, SINGLE_RIGHT, DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, STANDING = range(5)
+_STANCE_MASKS = {
+    LEFT: np.array([True, True, False, False]),
+    RIGHT: np.array([False, False, True, True]),
+    None: np.ones(4, dtype=bool),
+}
+
+
+@dataclass
+class GaitPhase:
+    """The gait state the OSC acts on at one tick."""
+
+    stance: int  # 0 left, 1 right: the (current or upcoming) stance leg
+    single_stance: bool  # False: double stance, both feet carry force
+    liftoff_s: float  # start of the current swing (single stance)
+    touchdown_s: float  # planned end of the current swing
+
+    @staticmethod
+    def from_plan(plan: Any, t: float) -> GaitPhase:
+        """Read the phase from an ``mpfc_output_t``; past the planned touchdown the swing foot
+        is treated as landed (double stance) until the next plan switches the stance."""
+        gs = int(plan.gait_state)
+        stance = int(plan.stance)
+        lo = float(plan.prev_switch_time_s)
+        td = float(plan.next_switch_time_s)
+        single = gs in (SINGLE_LEFT, SINGLE_RIGHT) and t < td
+        if gs in (SINGLE_LEFT, SINGLE_RIGHT):
+            stance = LEFT if gs == SINGLE_LEFT else RIGHT
+        return GaitPhase(stance, single, lo, td)
+
+
+class ComHeightPlane:
+    """CoM height reference on the plane through the current and next footholds, (21)-(22)."""
+
+    def __init__(self, params: WalkingParams) -> None:
+        self.p = params
+        self.k = np.zeros(2)  # low-passed (k_x, k_y)
+        self.t_last: float | None = None
+
+    def reset(self) -> None:
+        """Forget the filter state (a new walking episode)."""
+        self.t_last = None
+        self.k[:] = 0.0
+
+    def reference(self, t: float, stance_pos: Any, next_pos: Any, yaw: float,
+                  com: Any, com_vel: Any) -> tuple[float, float, float]:
+        """Return (z_des, zdot_des, k_x) in the world frame for the current CoM state
+        (positions as 3-sequences of floats, world frame)."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        d = [next_pos[i] - stance_pos[i] for i in range(3)]
+        px, py, pz = c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]  # stance frame
+        det = px * px + py * py  # (21): [[px, py], [-py, px]] k = [pz, 0]
+        if det > 1e-6:
+            kx, ky = px * pz / det, py * pz / det
+        else:
+            kx = ky = 0.0
+        # first-order low-pass with a com_filter_hz cutoff (Section V-A)
+        if self.t_last is None:
+            self.k[:] = (kx, ky)
+        else:
+            dt = max(0.0, t - self.t_last)
+            a = 1.0 - math.exp(-2.0 * math.pi * self.p.com_filter_hz * dt)
+            self.k[0] += a * (kx - self.k[0])
+            self.k[1] += a * (ky - self.k[1])
+        self.t_last = t
+        r = [com[i] - stance_pos[i] for i in range(3)]
+        xc, yc = c * r[0] + s * r[1], -s * r[0] + c * r[1]
+        vx, vy = c * com_vel[0] + s * com_vel[1], -s * com_vel[0] + c * com_vel[1]
+        z = stance_pos[2] + self.p.com_height + self.k[0] * xc + self.k[1] * yc  # (22)
+        clip = self.p.com_clip  # keep z_des within 2.5 cm of the measured CoM height
+        z = min(max(z, com[2] - clip), com[2] + clip)
+        return z, self.k[0] * vx + self.k[1] * vy, float(self.k[0])
+
+
+def swing_midpoint(p0: np.ndarray, p_des: np.ndarray, clearance: float) -> list[float]:
+    """Adaptive-clearance waypoint of Section V-B-1 (Fig. 6), as [x, y, z].
+
+    n_p is perpendicular to dp = p_des - p0 in the plane of dp and e_z; it is blended with e_z
+    for short steps (s ramps from 0 at |dp| = 0.1 m to 1 at 0.2 m), and the clearance is
+    c + min(c, dp_z). Float arithmetic: this runs every tick.
+    """
+    a = p0.tolist()
+    b = p_des.tolist()
+    dx, dy, dz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    n2 = dx * dx + dy * dy + dz * dz
+    n = math.sqrt(n2)
+    if n > 1e-9:
+        k = dz / n2  # e_z minus its component along dp
+        px, py, pz = -dx * k, -dy * k, 1.0 - dz * k
+        nn = math.sqrt(px * px + py * py + pz * pz)
+        px, py, pz = (px / nn, py / nn, pz / nn) if nn > 1e-9 else (0.0, 0.0, 1.0)
+    else:
+        px, py, pz = 0.0, 0.0, 1.0
+    s = min(max((n - 0.1) / 0.1, 0.0), 1.0)
+    bx, by, bz = s * px, s * py, (1.0 - s) + s * pz
+    nb = math.sqrt(bx * bx + by * by + bz * bz)
+    c = (clearance + min(clearance, dz)) / nb
+    return [a[0] + 0.5 * dx + c * bx, a[1] + 0.5 * dy + c * by, a[2] + 0.5 * dz + c * bz]
+
+
+class SwingFootTrajectory:
+    """Swing-foot polynomial from the QP (23), re-solved every tick.
+
+    The polynomial is in normalised time tau = (t - t_liftoff) / T over the whole swing; (23)
+    minimises the integral of the squared acceleration subject to continuity of position,
+    velocity and acceleration with the previous tick's polynomial at the previous tick's time,
+    the end conditions p(T) = p_des, p'(T) = p''(T) = 0, and p(T/2) = p_mid (dropped from
+    0.1 T before mid-swing on, where it would nearly repeat the continuity row). Its
+    equality-constrained KKT system is solved in closed form, one factorisation for 3 axes.
+    """
+
+    def __init__(self, degree: int = 8, freeze_s: float = 0.02, mid_margin: float = 0.1) -> None:
+        self.deg = degree
+        nc = degree + 1
+        self.nc = nc
+        Q = np.zeros((nc, nc))
+        for a in range(2, nc):
+            for b in range(2, nc):
+                Q[a, b] = a * (a - 1) * b * (b - 1) / (a + b - 3)  # int of tau^(a-2) tau^(b-2)
+        self.coef = np.zeros((nc, 3))
+        self.T = 1.0
+        self.t_prev = 0.0
+        self.liftoff = 0.0
+        self.p0 = np.zeros(3)
+        self.active = False
+        self.freeze_s = freeze_s
+        self.mid_margin = mid_margin
+        # KKT templates [2Q A^T; A 0], A = [end rows (3); mid row (0/1); continuity rows (3)];
+        # only the continuity rows change from tick to tick.
+        self._K: dict[bool, np.ndarray] = {}
+        self._rhs: dict[bool, np.ndarray] = {}
+        end = self._basis3(1.0)
+        mid = self._basis3(0.5)[0]
+        for with_mid in (False, True):
+            ne = 7 if with_mid else 6
+            K = np.zeros((nc + ne, nc + ne))
+            K[:nc, :nc] = 2.0 * Q
+            K[nc : nc + 3, :nc] = end
+            if with_mid:
+                K[nc + 3, :nc] = mid
+            K[:nc, nc:] = K[nc:, :nc].T
+            self._K[with_mid] = K
+            self._rhs[with_mid] = np.zeros((nc + ne, 3))
+
+    def _basis3(self, tau: float) -> np.ndarray:
+        """Rows [p, dp/dtau, d2p/dtau2] of the monomials 1, tau, ..., tau^deg at tau."""
+        nc = self.nc
+        pw = [1.0] * nc
+        for i in range(1, nc):
+            pw[i] = pw[i - 1] * tau
+        return np.array([
+            pw,
+            [0.0] + [i * pw[i - 1] for i in range(1, nc)],
+            [0.0, 0.0] + [i * (i - 1) * pw[i - 2] for i in range(2, nc)],
+        ])
+
+    def start(self, t: float, liftoff: float, touchdown: float, p_now: np.ndarray) -> None:
+        """Begin a swing at the current foot position with zero velocity and acceleration."""
+        self.T = max(touchdown - liftoff, 0.05)
+        tau = min(max((t - liftoff) / self.T, 0.0), 0.99)
+        # the "previous plan" of the first tick: a constant at the initial foot position
+        self.coef[:] = 0.0
+        self.coef[0] = p_now
+        self.liftoff = liftoff
+        self.t_prev = liftoff + tau * self.T
+        self.p0 = p_now.copy()
+        self.active = True
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration of the current plan at time t (clamped to T)."""
+        tau = min(max((t - self.liftoff) / self.T, 0.0), 1.0)
+        T = self.T
+        out = self._basis3(tau) @ self.coef
+        return out[0], out[1] / T, out[2] / (T * T)
+
+    def update(self, t: float, touchdown: float, p_des: np.ndarray, clearance: float) -> None:
+        """Re-solve (23) for the newest touchdown time and target, then advance to t."""
+        T_new = max(touchdown - self.liftoff, 0.05)
+        remaining = T_new - (self.t_prev - self.liftoff)
+        if remaining > self.freeze_s:
+            # continuity with the previous tick's polynomial at the previous tick's time
+            tau_prev = min(max((self.t_prev - self.liftoff) / self.T, 0.0), 1.0)
+            prev = self._basis3(tau_prev) @ self.coef  # old polynomial, old T: d/dtau_old
+            tau_k = (self.t_prev - self.liftoff) / T_new
+            with_mid = tau_k < 0.5 - self.mid_margin  # near mid-swing it would repeat p(tau_k)
+            K, rhs = self._K[with_mid], self._rhs[with_mid]
+            nc = self.nc
+            r = nc + (4 if with_mid else 3)
+            B = self._basis3(tau_k)
+            K[r : r + 3, :nc] = B
+            K[:nc, r : r + 3] = B.T
+            s = T_new / self.T  # d/dtau_new = (T_new / T_old) d/dtau_old
+            rhs[r] = prev[0]
+            rhs[r + 1] = prev[1] * s
+            rhs[r + 2] = prev[2] * (s * s)
+            rhs[nc] = p_des  # p(T) = p_des; p'(T) = p''(T) = 0 stay zero
+            if with_mid:
+                rhs[nc + 3] = swing_midpoint(self.p0, p_des, clearance)
+            _, _, sol, info = _gesv(K, rhs)
+            if info == 0:
+                self.coef[:] = sol[:nc]
+                self.T = T_new
+        self.t_prev = t
+
+
+class WalkingController:
+    """Task rows for one walking tick from the newest MPFC plan (Tables VI-VII, Section V)."""
+
+    def __init__(self, params: WalkingParams, nv: int) -> None:
+        self.p = params
+        self.pelvis = PelvisOrientationTask(nv)
+        self.plane = ComHeightPlane(params)
+        self.swing = SwingFootTrajectory(params.swing_degree)
+        self._swing_key: tuple[int, float] | None = None
+        self._zero3 = [0.0, 0.0, 0.0]
+        self.phase: GaitPhase | None = None
+
+    def reset(self) -> None:
+        """Start a new walking episode: filters and swing plan from scratch."""
+        self.plane.reset()
+        self._swing_key = None
+        self.swing.active = False
+
+    def add_tasks(self, rows: TaskRows, log: TaskLog, qp: OscQP, m: CassieModel, q: np.ndarray,
+                  v: np.ndarray, t: float, plan: Any, yaw_rate: float) -> np.ndarray:
+        """Append the walking tasks for the plan's phase; return the stance-point mask."""
+        p = self.p
+        ph = GaitPhase.from_plan(plan, t)
+        self.phase = ph
+        st = ph.stance
+        sw = 1 - st
+        stance_pos = [float(x) for x in plan.stance_foot_world]
+        next_pos = np.asarray(plan.next_footstep_world, dtype=float)
+        yaw = float(plan.stance_yaw)
+
+        # CoM height on the footstep plane (21)-(22), z only (Table VII weights x, y = 0).
+        z, zd, kx = self.plane.reference(t, stance_pos, next_pos, yaw, m.com_l, m.com_vel_l)
+        c, cv = m.com_l, m.com_vel_l
+        add_com_task(rows, log, m, p.com, [c[0], c[1], z], [cv[0], cv[1], zd], self._zero3)
+
+        # Pelvis roll/pitch to zero and the commanded yaw rate (Section V-C).
+        self.pelvis.add(rows, log, m, v, p.pelvis, m.pelvis_yaw(), yaw_rate)
+
+        qp.ankle_index = -1
+        if not ph.single_stance:
+            self._swing_key = None
+            return _STANCE_MASKS[None]
+
+        # Swing foot: trajectory from (23), restarted at each new liftoff.
+        key = (sw, round(ph.liftoff_s, 4))
+        if key != self._swing_key:
+            self._swing_key = key
+            self.swing.start(t, ph.liftoff_s, ph.touchdown_s, m.foot_center(sw))
+        self.swing.update(t, ph.touchdown_s, next_pos, p.swing_clearance)
+        pos, vel, acc = self.swing.evaluate(t)
+        add_foot_position_task(rows, log, m, sw, p.swing_foot, pos.tolist(), vel.tolist(),
+                               acc.tolist())
+        # Swing toe: foot at atan(k_x) to the horizontal; swing hip yaw at zero (Section V-C).
+        add_foot_pitch_task(rows, log, m, sw, p.toe, math.atan(kx))
+        add_joint_task(rows, log, m, q, v, int(m.hip_yaw_qpos[sw]), int(m.hip_yaw_dof[sw]),
+                       p.hip_yaw, 0.0, "swing_hip_yaw")
+
+        # Ankle torque cost (Section V-D). The MPFC torque u acts on the robot about the
+        # stance-frame y axis; the foot motor's reaction on the leg is -tau * axis, so
+        # tau = -u / (axis . y_stance).
+        y_st = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+        proj = float(m.foot_axis[st] @ y_st)
+        if abs(proj) > 0.3 and p.ankle_torque_weight > 0.0:
+            qp.ankle_index = 4 if st == LEFT else 9
+            qp.ankle_torque = -float(plan.ankle_torque) / proj
+            qp.ankle_weight = p.ankle_torque_weight
+        return _STANCE_MASKS[st]
+
+
+__all__ = [
+    "LEFT",
+    "RIGHT",
+    "ComHeightPlane",
+    "GaitPhase",
+    "SwingFootTrajectory",
+    "WalkingController",
+    "swing_midpoint",
+]
