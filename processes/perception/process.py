@@ -1,0 +1,210 @@
+"""The perception process: depth frames -> robot-centric elevation map (Section VII-A/B).
+
+Driven by the newest depth frame (a frame that arrives while the map is updating waits in the
+subscription's newest-slot and stale ones are skipped, as the RealSense polling thread's shared
+buffer does on the robot). For each frame: the camera pose comes from the *estimated* pelvis
+pose (the laptop's robot state nearest in time) and the camera mount, or from the frame itself
+(``camera_pose: frame``, the simulator's true pose); the robot's own legs are cropped with boxes
+around the leg links; the stance foot corrects the map's height drift (Section VII-B); the map
+is re-centred on the robot and published with the frame's ``utime``, so the latency from depth
+frame to footholds can be measured downstream.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from lcmtypes import contact_t, depth_frame_t, elevation_map_t, robot_state_t
+from processes.kinematics import AlipKinematics
+from processes.perception.elevation_map import CropBox, ElevationMap, ElevationMapParams
+from runtime.config_types import ProcessConfig, Profile
+from runtime.errors import ConfigError
+from runtime.node import Node
+
+LAYERS = ("elevation", "variance", "lowest")
+#: Leg links cropped from the point cloud, with the half extents of their boxes (m), body frame.
+LEG_LINKS = {
+    "shin": (0.28, 0.06, 0.06),
+    "tarsus": (0.28, 0.06, 0.06),
+    "foot": (0.14, 0.06, 0.05),
+    "knee": (0.12, 0.07, 0.07),
+}
+
+
+def mount_rotation(pitch_down_deg: float) -> np.ndarray:
+    """Rotation pelvis <- optical frame (z forward, x right, y down), tilted down by the pitch."""
+    p = math.radians(pitch_down_deg)
+    z = np.array([math.cos(p), 0.0, -math.sin(p)])  # optical axis
+    x = np.array([0.0, -1.0, 0.0])  # image right = pelvis -y
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def rot_to_quat(r: np.ndarray) -> np.ndarray:
+    """Rotation matrix -> quaternion (w, x, y, z)."""
+    import mujoco
+
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(r).reshape(-1))
+    return q
+
+
+class PerceptionNode(Node):
+    """Depth frame in, elevation map out; see the module docstring."""
+
+    name = "perception"
+    inputs = {"depth": depth_frame_t, "state": robot_state_t, "contact": contact_t}
+    outputs = {"elevation_map": elevation_map_t}
+    trigger_role = "depth"
+
+    def __init__(
+        self,
+        params: ElevationMapParams,
+        camera_pose: str,
+        mount_pos: np.ndarray,
+        pitch_down_deg: float,
+        crop_legs: bool,
+        drift_correction: bool,
+    ) -> None:
+        self.map = ElevationMap(params)
+        self.camera_pose = camera_pose
+        self.mount_pos = mount_pos
+        self.r_pc = mount_rotation(pitch_down_deg)
+        self.crop_legs = crop_legs
+        self.drift_correction = drift_correction
+        self.kin = AlipKinematics()
+        self.status_text = "no frame yet"
+        self.frames = 0
+        self.rejected = 0
+
+    def tick(self, ctx: Any, inbox: Any) -> None:
+        frame: depth_frame_t = inbox.trigger()
+        state = inbox.latest("state")
+        status = self._update(frame, state)
+        self.frames += 1
+        if status != "ok":
+            self.rejected += 1
+        self.status_text = status
+        ctx.publish("elevation_map", self._message(frame.header.utime, status))
+
+    def _update(self, frame: depth_frame_t, state: robot_state_t | None) -> str:
+        n = frame.width * frame.height
+        if n <= 0 or len(frame.data) != 2 * n:
+            return f"malformed frame: {frame.width}x{frame.height} with {len(frame.data)} bytes"
+        depth = np.frombuffer(frame.data, dtype="<u2").reshape(frame.height, frame.width)
+        depth_m = depth.astype(np.float32) * np.float32(frame.depth_scale)
+        depth_m[depth == 0] = np.nan
+        boxes: list[CropBox] = []
+        have_state = (
+            state is not None
+            and len(state.q) == self.kin.m.nq
+            and np.isfinite(state.q).all()
+            and np.isfinite(state.v).all()
+        )
+        if have_state:
+            self.kin.update(np.asarray(state.q), np.asarray(state.v))
+        if self.camera_pose == "estimated":
+            if not have_state:
+                return "no robot state yet: cannot place the camera"
+            pelvis_pos, pelvis_rot = self.kin.body_pose("cassie-pelvis")
+            cam_pos = pelvis_pos + pelvis_rot @ self.mount_pos
+            cam_quat = rot_to_quat(pelvis_rot @ self.r_pc)
+        else:
+            cam_pos = np.asarray(frame.camera_pos, dtype=float)
+            cam_quat = np.asarray(frame.camera_quat, dtype=float)
+        if have_state:
+            self.map.recenter(self.kin.com[:2])
+            if self.crop_legs:
+                boxes = self._leg_boxes()
+            if self.drift_correction and any(state.in_contact):
+                stance = 0 if state.in_contact[0] else 1
+                if state.alip_stance in (0, 1) and state.in_contact[state.alip_stance]:
+                    stance = state.alip_stance
+                self.map.apply_drift_correction(self.kin.foot_points[stance])
+        return self.map.update_from_depth(
+            depth_m,
+            frame.fx,
+            frame.fy,
+            frame.cx,
+            frame.cy,
+            cam_pos,
+            cam_quat,
+            leg_boxes=boxes,
+            time_s=frame.header.utime * 1e-6,
+        )
+
+    def _leg_boxes(self) -> list[CropBox]:
+        boxes = []
+        for side in ("left", "right"):
+            for link, half in LEG_LINKS.items():
+                pos, rot = self.kin.body_pose(f"{side}-{link}")
+                boxes.append(CropBox(center=pos, rotation=rot, half_extents=np.array(half)))
+        return boxes
+
+    def _message(self, utime: int, status: str) -> elevation_map_t:
+        m = self.map
+        layers = m.layers
+        msg = elevation_map_t()
+        msg.header.utime = utime
+        msg.resolution = float(m.params.resolution_m)
+        grid = layers["elevation"]
+        msg.rows, msg.cols = grid.shape
+        msg.origin = [float(m.origin[0]), float(m.origin[1])]
+        names = [n for n in LAYERS if n in layers]
+        msg.num_layers = len(names)
+        msg.layer_names = names
+        data = b"".join(np.ascontiguousarray(layers[n], dtype="<f4").tobytes() for n in names)
+        msg.num_bytes = len(data)
+        msg.data = data
+        known = np.isfinite(grid).any()
+        msg.status = 0 if status == "ok" and known else (2 if not known else 1)
+        msg.status_text = status
+        return msg
+
+    def status(self) -> str:
+        return f"{self.frames} frames, {self.rejected} not fused; last: {self.status_text}"
+
+
+def make_node(proc: ProcessConfig, profile: Profile) -> Node:
+    """Perception from hw_config: map parameters (gains file) and camera mount (params)."""
+    file, p = str(proc.source_file), proc.params
+    variant = str(p.get("variant", "simulation"))
+    params = (
+        ElevationMapParams.from_yaml(proc.gains_file, variant)
+        if proc.gains_file
+        else ElevationMapParams()
+    )
+    pose = p.get("camera_pose", "estimated")
+    if pose not in ("estimated", "frame"):
+        raise ConfigError(
+            file, proc.key("params", "camera_pose"), f"unknown value {pose!r}", "estimated, frame"
+        )
+    mount = p.get("camera_mount_pos_m", [0.09, 0.0, 0.02])
+    if not (
+        isinstance(mount, list)
+        and len(mount) == 3
+        and all(isinstance(v, (int, float)) for v in mount)
+    ):
+        raise ConfigError(
+            file,
+            proc.key("params", "camera_mount_pos_m"),
+            f"must be [x, y, z] in the pelvis frame, got {mount!r}",
+        )
+    pitch = p.get("camera_pitch_down_deg", 50.0)
+    if not isinstance(pitch, (int, float)) or not -90.0 <= pitch <= 90.0:
+        raise ConfigError(
+            file,
+            proc.key("params", "camera_pitch_down_deg"),
+            f"out of range: {pitch!r}",
+            "[-90, 90]",
+        )
+    return PerceptionNode(
+        params,
+        pose,
+        np.asarray(mount, dtype=float),
+        float(pitch),
+        bool(p.get("crop_legs", True)),
+        bool(p.get("drift_correction", True)),
+    )
