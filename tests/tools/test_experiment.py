@@ -1,0 +1,45 @@
+"""`cassie experiment` judges trials from ground truth: falls, distance, footholds."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lcmtypes import ground_truth_t
+from runtime.config import HW_CONFIG_DIR
+from sim.terrain import Foothold
+from tools.experiment import Judge, run_trial
+
+
+def _gt(t: float, x: float, z: float, contact: tuple[bool, bool], feet) -> ground_truth_t:  # type: ignore[no-untyped-def]
+    m = ground_truth_t()
+    m.header.utime = int(t * 1e6)
+    m.q = [x, 0.0, z] + [0.0] * 32
+    m.foot_contact = list(contact)
+    m.foot_pos = [list(f) for f in feet]
+    return m
+
+
+def test_judge_counts_falls_distance_and_footsteps_outside_footholds():
+    square = np.array([[0, -0.5, 0], [1, -0.5, 0], [1, 0.5, 0], [0, 0.5, 0]], dtype=float)
+    judge = Judge([Foothold(vertices=square)], walk_start_s=0.0)
+    feet_in = [(0.2, 0.1, 0.0), (0.2, -0.1, 0.0)]
+    judge(0, _gt(0.0, 0.0, 0.95, (True, True), feet_in))
+    judge(0, _gt(0.5, 0.2, 0.95, (True, False), feet_in))  # right foot lifts
+    judge(0, _gt(1.0, 0.4, 0.95, (True, True), [(0.2, 0.1, 0), (0.6, -0.1, 0)]))  # lands inside
+    judge(0, _gt(1.5, 0.6, 0.95, (False, True), feet_in))
+    judge(0, _gt(2.0, 0.8, 0.95, (True, True), [(1.4, 0.1, 0), (0.6, -0.1, 0)]))  # lands outside
+    judge(0, _gt(2.5, 0.9, 0.55, (True, True), feet_in))  # pelvis below 0.6 m: a fall
+    assert len(judge.touchdowns) == 2
+    assert judge.outside() == 1
+    assert judge.fall_t == 2.5
+    assert np.isclose(judge.x_last - judge.x0, 0.9)
+
+
+def test_experiment_without_a_controller_is_reported_as_failed_not_faked(tmp_path):
+    base = tmp_path / "no_controller.yaml"
+    base.write_text(f"include: [{HW_CONFIG_DIR / 'experiment.yaml'}]\n"
+                    "launch: [sim, state_estimator, torque_bridge]\n")
+    trial = run_trial("flat", 0.3, 0, None, False, 0.375, base)
+    assert not trial.fell and trial.min_pelvis_height_m > 0.9  # held by the start-up holder
+    assert abs(trial.distance_m) < 0.01
+    assert not trial.success

@@ -1,0 +1,271 @@
+"""`cassie experiment NAME`: a closed-loop walking experiment in the deterministic harness.
+
+The same process nodes as `cassie launch` (from ``hw_config/experiment.yaml``) are stepped in
+sim-time order inside this one process, so a result depends on the seed and the code, never on
+how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth), ``beam``
+(23 cm wide) and ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``), with
+ground-truth footholds from the sim, or with ``--perception`` the footholds of S3.
+
+Reported per trial, from the sim's ground truth: distance walked, mean forward speed against the
+command, falls (pelvis below 0.6 m), footsteps (touchdowns) and footsteps outside every
+foothold, and whether the trial succeeded (no fall, speed within 15% of the command, no
+footstep outside a foothold).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lcmtypes import command_t, ground_truth_t
+from runtime.config import HW_CONFIG_DIR, load_profile
+from runtime.harness import Binding, Harness
+from runtime.node import Node
+from tools.benchmarks.common import print_table, write_json
+
+EXPERIMENTS = ("flat", "stairs", "beam", "stones")
+FALL_HEIGHT_M = 0.6
+MIN_SWING_S = 0.1  # shorter airborne spells are contact flicker, not steps
+HEADING_GAIN = 1.0  # operator's yaw rate per radian of heading error (Section VIII-A)
+SPEED_TOLERANCE = 0.15
+
+
+@dataclass
+class Trial:
+    """Figures of one trial; names carry their unit."""
+
+    experiment: str
+    seed: int
+    duration_s: float = 0.0
+    distance_m: float = 0.0
+    mean_velocity_mps: float = 0.0
+    commanded_velocity_mps: float = 0.0
+    velocity_error_ratio: float = 0.0
+    fell: bool = False
+    fall_time_s: float = -1.0
+    min_pelvis_height_m: float = 0.0
+    footsteps: int = 0
+    footsteps_outside: int = 0
+    success: bool = False
+    wall_s: float = 0.0
+    notes: list[str] = field(default_factory=list)
+
+
+class Operator(Node):
+    """The operator's radio in the harness: the commanded speed, and a yaw rate proportional
+    to the heading error (as the paper's simulation experiments command the OSC)."""
+
+    name = "operator"
+    inputs = {"ground_truth": ground_truth_t}
+    outputs = {"command": command_t}
+
+    def __init__(self, vx: float) -> None:
+        self.vx = vx
+        self.period_s = 0.05  # 20 Hz, as a radio sends
+
+    def tick(self, ctx: Any, inbox: Any) -> None:
+        cmd = command_t()
+        cmd.header.utime = ctx.now_utime
+        cmd.vx = self.vx
+        gt = inbox.latest("ground_truth")
+        if gt is not None:
+            w, x, y, z = gt.q[3:7]
+            yaw = float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+            cmd.yaw_rate = -HEADING_GAIN * yaw
+        ctx.publish("command", cmd)
+
+
+class Judge:
+    """Watches GROUND_TRUTH: falls, distance, speed and where each foot touches down."""
+
+    def __init__(self, footholds: list[Any], walk_start_s: float) -> None:
+        self.footholds = footholds
+        self.walk_start_s = walk_start_s
+        self.x0: float | None = None
+        self.x_last = 0.0
+        self.t_last = 0.0
+        self.min_z = np.inf
+        self.fall_t: float | None = None
+        self.prev_contact = [True, True]
+        self.lift_t = [-1.0, -1.0]  # when each foot last left the ground
+        self.touchdowns: list[tuple[float, np.ndarray]] = []
+
+    def __call__(self, t_us: int, gt: Any) -> None:
+        t = gt.header.utime * 1e-6
+        z = gt.q[2]
+        self.min_z = min(self.min_z, z)
+        if z < FALL_HEIGHT_M and self.fall_t is None:
+            self.fall_t = t
+        if t >= self.walk_start_s:
+            if self.x0 is None:
+                self.x0 = gt.q[0]
+                self.t0 = t
+            self.x_last, self.t_last = gt.q[0], t
+            for i in (0, 1):
+                if not gt.foot_contact[i] and self.prev_contact[i]:
+                    self.lift_t[i] = t
+                # a touchdown ends a real swing (airborne for MIN_SWING_S), not a contact flicker
+                if (
+                    gt.foot_contact[i]
+                    and not self.prev_contact[i]
+                    and self.lift_t[i] >= 0
+                    and t - self.lift_t[i] >= MIN_SWING_S
+                ):
+                    self.touchdowns.append((t, np.asarray(gt.foot_pos[i], dtype=float)))
+        self.prev_contact = list(gt.foot_contact)
+
+    def outside(self) -> int:
+        if not self.footholds:
+            return 0
+        return sum(
+            not any(f.contains_xy(p[0], p[1]) for f in self.footholds) for _, p in self.touchdowns
+        )
+
+
+def _terrain_file(name: str, dmin: float | None, seed: int, work: Path) -> str:
+    if name == "stones":
+        path = work / "stones.yaml"
+        path.write_text(
+            "terrain: stones\n"
+            f"seed: {seed}\nfoothold_margin: 0.02\n"
+            f"params: {{d_min: {dmin if dmin is not None else 0.35}, platform: 1.0,"
+            " pit_depth: 0.5}\n"
+        )
+        return str(path)
+    return str(HW_CONFIG_DIR / "terrains" / f"{name}.yaml")
+
+
+def run_trial(
+    name: str,
+    duration_s: float,
+    seed: int,
+    dmin: float | None,
+    perception: bool,
+    vx: float,
+    base_profile: Path,
+) -> Trial:
+    """One trial: build the experiment profile's nodes, run, judge."""
+    from sim import terrain as terrain_mod
+
+    trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        terrain = _terrain_file(name, dmin, seed, work)
+        base = load_profile(base_profile)
+        launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
+        if perception:
+            launch += [p for p in ("perception", "s3") if p not in launch]
+        prof_path = work / "experiment.yaml"
+        prof_path.write_text(
+            f"include: [{base_profile}]\nprofile: experiment_{name}\n"
+            f"launch: [{', '.join(launch)}]\n"
+            f"overrides: {{sim: {{params: {{terrain: '{terrain}', "
+            f"publish_footholds: {str(not perception).lower()}}}}}}}\n"
+        )
+        profile = load_profile(prof_path)
+        ter = terrain_mod.load_terrain(terrain)
+        h = Harness.from_profile(profile)
+        gt_channel = profile.channels["ground_truth"].name
+        h.add(
+            Binding(
+                Operator(vx),
+                inputs={"ground_truth": gt_channel},
+                outputs={"command": profile.channels["command"].name},
+            )
+        )
+        walk_start_s = 0.0
+        judge = Judge(list(ter.footholds), walk_start_s)
+        h.tap(gt_channel, judge)
+        t0 = time.perf_counter()
+        h.run_until(int(duration_s * 1e6), stop=lambda: judge.fall_t is not None)
+        trial.wall_s = time.perf_counter() - t0
+        h.close()
+    trial.duration_s = judge.t_last
+    trial.fell = judge.fall_t is not None
+    trial.fall_time_s = judge.fall_t if judge.fall_t is not None else -1.0
+    trial.min_pelvis_height_m = float(judge.min_z)
+    if judge.x0 is not None:
+        trial.distance_m = float(judge.x_last - judge.x0)
+        span = judge.t_last - judge.t0
+        trial.mean_velocity_mps = trial.distance_m / span if span > 0 else 0.0
+    trial.velocity_error_ratio = (abs(trial.mean_velocity_mps - vx) / abs(vx)) if vx else 0.0
+    trial.footsteps = len(judge.touchdowns)
+    trial.footsteps_outside = judge.outside()
+    trial.success = (
+        not trial.fell
+        and trial.velocity_error_ratio <= SPEED_TOLERANCE
+        and trial.footsteps_outside == 0
+        and trial.footsteps > 0
+    )
+    if "osc" not in launch:
+        trial.notes.append("no walking controller in the experiment profile")
+    return trial
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="cassie experiment",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument("name", choices=EXPERIMENTS)
+    ap.add_argument("--duration", type=float, default=10.0, help="sim seconds per trial")
+    ap.add_argument("--seed", type=int, default=0, help="terrain seed (stones)")
+    ap.add_argument("--trials", type=int, default=1, help="trials, seeds seed..seed+N-1")
+    ap.add_argument("--dmin", type=float, default=None, help="stones: minimum side d_min, m")
+    ap.add_argument("--perception", action="store_true", help="S3 footholds, not ground truth")
+    ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
+    ap.add_argument("--profile", type=Path, default=HW_CONFIG_DIR / "experiment.yaml")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    if args.dmin is not None and args.name != "stones":
+        ap.error("--dmin is for the stones experiment")
+    if args.duration <= 0 or args.trials < 1:
+        ap.error("--duration must be > 0 and --trials >= 1")
+    trials = [
+        run_trial(
+            args.name,
+            args.duration,
+            args.seed + i,
+            args.dmin,
+            args.perception,
+            args.vx,
+            args.profile,
+        )
+        for i in range(args.trials)
+    ]
+    for tr in trials:
+        rows = {k: v for k, v in asdict(tr).items() if k != "notes"}
+        print_table(f"experiment {tr.experiment}, seed {tr.seed}", rows)
+        for note in tr.notes:
+            print(f"  note: {note}")
+    ok = sum(t.success for t in trials)
+    figures: dict[str, Any] = {
+        "description": f"{args.name} in the deterministic harness"
+        + (" with perception" if args.perception else " with true footholds"),
+        "trials": len(trials),
+        "success_ratio": ok / len(trials),
+        "falls": sum(t.fell for t in trials),
+        "distance_m": float(np.mean([t.distance_m for t in trials])),
+        "mean_velocity_mps": float(np.mean([t.mean_velocity_mps for t in trials])),
+        "commanded_velocity_mps": args.vx,
+        "footsteps": sum(t.footsteps for t in trials),
+        "footsteps_outside": sum(t.footsteps_outside for t in trials),
+        "sim_duration_s": args.duration,
+    }
+    if args.dmin is not None:
+        figures["dmin_m"] = args.dmin
+    print(f"\n{ok}/{len(trials)} trials succeeded")
+    write_json(args.json, f"experiment_{args.name}", figures)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
