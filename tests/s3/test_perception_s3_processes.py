@@ -16,7 +16,7 @@ def _profile(tmp_path: Path, terrain: str):  # type: ignore[no-untyped-def]
         f"include: [{HW_CONFIG_DIR / 'experiment.yaml'}]\n"
         "launch: [sim, state_estimator, torque_bridge, perception, s3]\n"
         f"overrides: {{sim: {{params: {{terrain: '{terrain}', drive: periodic, "
-        "camera_render: inline}}}\n"
+        "camera_render: inline, publish_footholds: false}}}\n"
     )
     return load_profile(p)
 

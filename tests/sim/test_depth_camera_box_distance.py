@@ -77,7 +77,10 @@ def test_noise_and_dropout_and_the_background_renderers() -> None:
             if isinstance(renderer, ProcessDepthRenderer):
                 assert renderer.wait_ready(60.0)
             assert renderer.request(q, 99)
-            assert not renderer.request(q, 100) and renderer.dropped == 1  # busy: dropped
+            # a request while a frame renders is dropped and counted (if the render already
+            # finished, the request is simply accepted): never queued, never lost silently
+            accepted = renderer.request(q, 100)
+            assert accepted != (renderer.dropped == 1)
             frame = None
             for _ in range(2000):
                 frame = renderer.poll()
