@@ -138,6 +138,14 @@ class Subscription:
     def pending(self) -> int:
         return len(self._queue) if self.policy == "each" else int(self._raw is not None)
 
+    def trim(self, keep: int) -> int:
+        """Drop all but the newest ``keep`` queued messages (counted as stale); returns how many."""
+        drop = max(len(self._queue) - keep, 0)
+        for _ in range(drop):
+            self._queue.popleft()
+        self.stale_skipped += drop
+        return drop
+
     def peek(self) -> Any | None:
         """The last decoded message without consuming anything."""
         return self._decoded

@@ -277,6 +277,8 @@ class LiveRunner:
             now = time.monotonic_ns()
             if port.fresh:
                 if self.node.trigger_policy == "each":
+                    if self.node.max_backlog is not None:
+                        port.trim(self.node.max_backlog)
                     while port.pending():
                         msg = port.pop()
                         if msg is None:

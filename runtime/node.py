@@ -60,6 +60,9 @@ class Node:
     #: "newest": tick once on the newest message, skipping stale ones (control loops);
     #: "each": tick once per message, in order (e.g. integrating every IMU packet)
     trigger_policy: TriggerPolicy = "newest"
+    #: with "each": the most messages kept waiting when the loop falls behind its input; older
+    #: ones are dropped and counted as stale, so latency stays bounded (None: keep them all)
+    max_backlog: int | None = None
     #: set by the runner from ``hw_config`` (rate_hz, deadline_ms) before ``setup``
     period_s: float | None = None
     deadline_s: float | None = None

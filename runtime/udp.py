@@ -92,6 +92,14 @@ class UdpReceiver:
     def pending(self) -> int:
         return len(self._queue) if self.policy == "each" else int(self._newest is not None)
 
+    def trim(self, keep: int) -> int:
+        """Drop all but the newest ``keep`` queued datagrams (counted as stale)."""
+        drop = max(len(self._queue) - keep, 0)
+        for _ in range(drop):
+            self._queue.popleft()
+        self.stale_skipped += drop
+        return drop
+
     def peek(self) -> bytes | None:
         return self._decoded_last
 

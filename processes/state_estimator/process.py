@@ -46,6 +46,7 @@ class StateEstimatorNode(Node):
     outputs = {"state": robot_state_t, "network_state": robot_state_t, "contact": contact_t}
     trigger_role = "robot_output"
     trigger_policy = "each"
+    max_backlog = 40  # 20 ms of packets: beyond that, skip (and count) the oldest: bounded lag
 
     def __init__(self, params: EstimatorParams | None = None) -> None:
         self.params = params or EstimatorParams()

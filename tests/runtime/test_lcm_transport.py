@@ -103,3 +103,21 @@ def test_garbage_bytes_are_counted_and_subscriber_lives_on(lcm_url, procs):
 
     wait_for(lambda: errors >= 21, 5, poll=poll, what="decode errors in the echo's TIMING")
     assert errors == 21
+
+
+def test_each_policy_backlog_is_bounded_and_drops_are_counted():
+    import socket
+
+    from runtime.udp import UdpReceiver
+
+    rx = UdpReceiver(("127.0.0.1", 0), policy="each")
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    addr = rx.sock.getsockname()
+    for i in range(10):
+        tx.sendto(bytes([i]), addr)
+    time.sleep(0.1)
+    assert rx.drain() == 10
+    assert rx.trim(3) == 7
+    assert [rx.pop(), rx.pop(), rx.pop(), rx.pop()] == [b"\x07", b"\x08", b"\x09", None]
+    assert rx.stale_skipped == 7
+    rx.close()
