@@ -12,19 +12,18 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import deque
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any
 from urllib.parse import parse_qsl, urlencode, urlparse, urlunparse
 
 import lcm
 
 from runtime.errors import BusError, MulticastRouteError
+from runtime.port_buffer import Policy, PortBuffer
 from runtime.route import FIX_HINT, check_multicast_route, has_multicast_route, multicast_group
 
 log = logging.getLogger(__name__)
 
-Policy = Literal["newest", "each"]
 
 DEFAULT_URL = "udpm://239.255.76.67:7667"
 
@@ -53,42 +52,24 @@ def make_lcm(url: str) -> lcm.LCM:
         ) from exc
 
 
-class Subscription:
+class Subscription(PortBuffer):
     """One channel's inbox: the newest message (or every message, in order), decoded on demand."""
 
     def __init__(self, channel: str, msg_type: type | None, policy: Policy, capacity: int) -> None:
+        super().__init__(policy, capacity)
         self.channel = channel
         self.msg_type = msg_type
-        self.policy = policy
         self._fingerprint: bytes | None = (
             msg_type._get_packed_fingerprint() if msg_type is not None else None  # type: ignore[attr-defined]
         )
-        self._raw: bytes | None = None
-        self._decoded: Any | None = None
-        self._queue: deque[bytes] = deque(maxlen=capacity)
-        self.fresh = False
-        self.received = 0
-        self.stale_skipped = 0
-        self.decode_errors = 0
-        self.overflowed = 0
-        self.last_receive_ns = 0
         self.last_error: str = ""
 
     def _on_message(self, _channel: str, data: bytes) -> None:
-        self.received += 1
-        self.last_receive_ns = time.monotonic_ns()
+        self._stamp_arrival()
         if self._fingerprint is not None and data[:8] != self._fingerprint:
             self._count_error(f"{len(data)} bytes that are not {self.msg_type.__name__}")  # type: ignore[union-attr]
             return
-        if self.policy == "each":
-            if len(self._queue) == self._queue.maxlen:
-                self.overflowed += 1
-            self._queue.append(data)
-        else:
-            if self.fresh:
-                self.stale_skipped += 1
-            self._raw = data
-        self.fresh = True
+        self.put(data)
 
     def _count_error(self, what: str) -> None:
         self.decode_errors += 1
@@ -106,49 +87,6 @@ class Subscription:
         except Exception as exc:
             self._count_error(f"a malformed {self.msg_type.__name__} ({exc})")
             return None
-
-    def latest(self) -> Any | None:
-        """The newest message, decoded and marked consumed (the previous good one if corrupt)."""
-        if self.policy == "each":
-            while self._queue:
-                msg = self._decode(self._queue.popleft())
-                if msg is not None:
-                    self._decoded = msg
-            self.fresh = False
-            return self._decoded
-        if self._raw is not None:
-            raw, self._raw = self._raw, None
-            msg = self._decode(raw)
-            if msg is not None:
-                self._decoded = msg
-        self.fresh = False
-        return self._decoded
-
-    def pop(self) -> Any | None:
-        """Next message in arrival order (``each`` policy); None when the queue is empty."""
-        while self._queue:
-            msg = self._decode(self._queue.popleft())
-            if msg is not None:
-                self._decoded = msg
-                self.fresh = bool(self._queue)
-                return msg
-        self.fresh = False
-        return None
-
-    def pending(self) -> int:
-        return len(self._queue) if self.policy == "each" else int(self._raw is not None)
-
-    def trim(self, keep: int) -> int:
-        """Drop all but the newest ``keep`` queued messages (counted as stale); returns how many."""
-        drop = max(len(self._queue) - keep, 0)
-        for _ in range(drop):
-            self._queue.popleft()
-        self.stale_skipped += drop
-        return drop
-
-    def peek(self) -> Any | None:
-        """The last decoded message without consuming anything."""
-        return self._decoded
 
 
 class Bus:

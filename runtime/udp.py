@@ -4,24 +4,23 @@ from __future__ import annotations
 
 import errno
 import socket
-import time
-from collections import deque
 
 from runtime.errors import BusError
+from runtime.port_buffer import Policy, PortBuffer
 
 
-class UdpReceiver:
+class UdpReceiver(PortBuffer):
     """A bound, non-blocking UDP socket that keeps the newest datagram (or every one, in order)."""
 
     def __init__(
         self,
         address: tuple[str, int],
-        policy: str = "newest",
+        policy: Policy = "newest",
         capacity: int = 4096,
         recv_buf_size: int = 1 << 20,
     ) -> None:
+        super().__init__(policy, capacity)
         self.address = address
-        self.policy = policy
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buf_size)
         try:
@@ -30,7 +29,7 @@ class UdpReceiver:
             self.sock.close()
             hint = (
                 " (another process already holds it: is a previous run still alive?)"
-                if (exc.errno == errno.EADDRINUSE)
+                if exc.errno == errno.EADDRINUSE
                 else ""
             )
             raise BusError(
@@ -38,14 +37,6 @@ class UdpReceiver:
             ) from exc
         self.sock.setblocking(False)
         self._buf = bytearray(65536)
-        self._queue: deque[tuple[bytes, int]] = deque(maxlen=capacity)
-        self._newest: bytes | None = None
-        self._decoded_last: bytes | None = None
-        self.fresh = False
-        self.received = 0
-        self.stale_skipped = 0
-        self.decode_errors = 0
-        self.last_receive_ns = 0
 
     def fileno(self) -> int:
         return self.sock.fileno()
@@ -58,50 +49,10 @@ class UdpReceiver:
                 size = self.sock.recv_into(self._buf)
             except (BlockingIOError, InterruptedError):
                 break
-            data = bytes(self._buf[:size])
-            now = time.monotonic_ns()
-            self.received += 1
-            self.last_receive_ns = now
+            self._stamp_arrival()
+            self.put(bytes(self._buf[:size]))
             n += 1
-            if self.policy == "each":
-                self._queue.append((data, now))
-            else:
-                if self.fresh:
-                    self.stale_skipped += 1
-                self._newest = data
-            self.fresh = True
         return n
-
-    def latest(self) -> bytes | None:
-        if self.policy == "each":
-            while self._queue:
-                self._decoded_last = self._queue.popleft()[0]
-        elif self._newest is not None:
-            self._decoded_last, self._newest = self._newest, None
-        self.fresh = False
-        return self._decoded_last
-
-    def pop(self) -> bytes | None:
-        if self._queue:
-            self._decoded_last = self._queue.popleft()[0]
-            self.fresh = bool(self._queue)
-            return self._decoded_last
-        self.fresh = False
-        return None
-
-    def pending(self) -> int:
-        return len(self._queue) if self.policy == "each" else int(self._newest is not None)
-
-    def trim(self, keep: int) -> int:
-        """Drop all but the newest ``keep`` queued datagrams (counted as stale)."""
-        drop = max(len(self._queue) - keep, 0)
-        for _ in range(drop):
-            self._queue.popleft()
-        self.stale_skipped += drop
-        return drop
-
-    def peek(self) -> bytes | None:
-        return self._decoded_last
 
     def close(self) -> None:
         self.sock.close()

@@ -1,0 +1,91 @@
+"""The inbox of one input port: the newest payload, or every payload in order, with counters.
+
+Shared by LCM subscriptions (``runtime.bus.Subscription``) and UDP ports
+(``runtime.udp.UdpReceiver``); subclasses decode raw bytes on demand (``_decode``), so a loop
+that only wants the newest message never pays for decoding the ones it skips.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from typing import Any, Literal
+
+Policy = Literal["newest", "each"]
+
+
+class PortBuffer:
+    """Newest-slot (``newest``) or bounded FIFO (``each``) of raw payloads."""
+
+    def __init__(self, policy: Policy, capacity: int) -> None:
+        self.policy = policy
+        self._raw: bytes | None = None
+        self._decoded: Any | None = None
+        self._queue: deque[bytes] = deque(maxlen=capacity)
+        self.fresh = False
+        self.received = 0
+        self.stale_skipped = 0
+        self.decode_errors = 0
+        self.overflowed = 0
+        self.last_receive_ns = 0
+
+    def put(self, data: bytes) -> None:
+        """File one arrived payload (the receive path: no decoding here)."""
+        if self.policy == "each":
+            if len(self._queue) == self._queue.maxlen:
+                self.overflowed += 1
+            self._queue.append(data)
+        else:
+            if self.fresh:
+                self.stale_skipped += 1
+            self._raw = data
+        self.fresh = True
+
+    def _decode(self, data: bytes) -> Any | None:
+        """Payload -> message, or None when it is malformed (subclasses count why)."""
+        return data
+
+    def latest(self) -> Any | None:
+        """The newest message, decoded and marked consumed (the previous good one if corrupt)."""
+        if self.policy == "each":
+            while self._queue:
+                msg = self._decode(self._queue.popleft())
+                if msg is not None:
+                    self._decoded = msg
+        elif self._raw is not None:
+            raw, self._raw = self._raw, None
+            msg = self._decode(raw)
+            if msg is not None:
+                self._decoded = msg
+        self.fresh = False
+        return self._decoded
+
+    def pop(self) -> Any | None:
+        """Next message in arrival order (``each`` policy); None when the queue is empty."""
+        while self._queue:
+            msg = self._decode(self._queue.popleft())
+            if msg is not None:
+                self._decoded = msg
+                self.fresh = bool(self._queue)
+                return msg
+        self.fresh = False
+        return None
+
+    def pending(self) -> int:
+        return len(self._queue) if self.policy == "each" else int(self._raw is not None)
+
+    def trim(self, keep: int) -> int:
+        """Drop all but the newest ``keep`` queued payloads (counted as stale); returns how many."""
+        drop = max(len(self._queue) - keep, 0)
+        for _ in range(drop):
+            self._queue.popleft()
+        self.stale_skipped += drop
+        return drop
+
+    def peek(self) -> Any | None:
+        """The last decoded message, without consuming anything."""
+        return self._decoded
+
+    def _stamp_arrival(self) -> None:
+        self.received += 1
+        self.last_receive_ns = time.monotonic_ns()
