@@ -11,6 +11,7 @@ cleared cells, which splits an 8-connected region and can never leave the safe s
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -115,6 +116,26 @@ def make_cut(vertices: np.ndarray, vi: np.ndarray, a0: np.ndarray, alpha: float 
     return np.array([ax, ay])
 
 
+def _rotate_step(cost: Callable[[float, float], float], ax: float, ay: float, f: float,
+                 theta: float, curv: float, alpha: float,
+                 beta: float) -> tuple[float, float, float, bool] | None:
+    """One rotation of the cut normal along the unit circle (Algorithm 2): a Newton step capped
+    at alpha, backtracked by beta while the cost rises. Returns the new normal, its cost and
+    whether the rotation was negligible; None when no decreasing rotation was found."""
+    step = alpha if curv <= 0.0 else min(alpha, abs(theta) / curv)
+    t = step / abs(theta)
+    for _ in range(40):                        # backtracking: while f(Rotate) > f(x)
+        ang = theta * t
+        ca, sa = math.cos(ang), math.sin(ang)
+        nx, ny = ca * ax - sa * ay, sa * ax + ca * ay
+        fn = cost(nx, ny)
+        if fn <= f:
+            norm = math.hypot(nx, ny)
+            return nx / norm, ny / norm, fn, abs(theta * t) < 1e-9
+        t *= beta
+    return None
+
+
 _PY_MAX_POINTS = 48      # above this many vertices the numpy variants are faster
 
 
@@ -155,23 +176,11 @@ def _make_cut_py(vl: list[list[float]], xi: float, yi: float, a0x: float, a0y: f
             break
         # curvature of f along the circle at a: 2 sum_active (w.a_perp)^2 - a.g
         curv = 2.0 * curv_h - (gx * ax + gy * ay)
-        step = alpha if curv <= 0.0 else min(alpha, abs(theta) / curv)
-        t = step / abs(theta)
-        accepted = False
-        for _ in range(40):                    # backtracking: while f(Rotate) > f(x)
-            ang = theta * t
-            ca, sa = math.cos(ang), math.sin(ang)
-            nx, ny = ca * ax - sa * ay, sa * ax + ca * ay
-            fn = cost(nx, ny)
-            if fn <= f:
-                accepted = True
-                break
-            t *= beta
-        if not accepted:
+        moved = _rotate_step(cost, ax, ay, f, theta, curv, alpha, beta)
+        if moved is None:
             break
-        norm = math.hypot(nx, ny)
-        ax, ay, f = nx / norm, ny / norm, fn
-        if abs(theta * t) < 1e-9:
+        ax, ay, f, converged = moved
+        if converged:
             break
     return ax, ay
 
@@ -202,23 +211,11 @@ def _make_cut_np(v: np.ndarray, xi: float, yi: float, a0x: float, a0y: float, al
             break
         perp = -wx * ay + wy * ax
         curv = 2.0 * float((perp * perp) @ (proj > 0.0)) - (gx * ax + gy * ay)
-        step = alpha if curv <= 0.0 else min(alpha, abs(theta) / curv)
-        t = step / abs(theta)
-        accepted = False
-        for _ in range(40):
-            ang = theta * t
-            ca, sa = math.cos(ang), math.sin(ang)
-            nx, ny = ca * ax - sa * ay, sa * ax + ca * ay
-            fn = cost(nx, ny)
-            if fn <= f:
-                accepted = True
-                break
-            t *= beta
-        if not accepted:
+        moved = _rotate_step(cost, ax, ay, f, theta, curv, alpha, beta)
+        if moved is None:
             break
-        norm = math.hypot(nx, ny)
-        ax, ay, f = nx / norm, ny / norm, fn
-        if abs(theta * t) < 1e-9:
+        ax, ay, f, converged = moved
+        if converged:
             break
     return ax, ay
 
