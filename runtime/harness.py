@@ -14,15 +14,19 @@ import dataclasses
 import heapq
 import importlib
 import time
-from collections import defaultdict, deque
+from collections import defaultdict
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
+from runtime.bus import Subscription
 from runtime.config_types import Profile
 from runtime.node import Node
+from runtime.port_buffer import PortInbox
 
 US = 1_000_000
+#: an "each" inbox never drops in the harness: a tick is scheduled per message
+HARNESS_QUEUE = 1 << 20
 #: more events than this at one sim instant means a zero-delay cycle that never advances time
 MAX_EVENTS_PER_INSTANT = 100_000
 
@@ -35,41 +39,6 @@ class Binding:
     inputs: Mapping[str, str]
     outputs: Mapping[str, str]
     delay_us: int = 0  # sim time between the trigger and the tick's outputs being visible
-
-
-@dataclass
-class _Port:
-    msg_type: type | None
-    policy: str = "newest"
-    last_raw: bytes | None = None
-    decoded: Any | None = None
-    fresh: bool = False
-    queue: deque[bytes] = field(default_factory=deque)
-
-    def decode(self, raw: bytes) -> Any:
-        if self.msg_type is None or self.msg_type is bytes:
-            return raw
-        return self.msg_type.decode(raw)  # type: ignore[attr-defined]
-
-
-class _Inbox:
-    def __init__(self, ports: dict[str, _Port]) -> None:
-        self._ports = ports
-        self._trigger: Any | None = None
-
-    def latest(self, role: str) -> Any | None:
-        port = self._ports[role]
-        if port.last_raw is not None:
-            port.decoded = port.decode(port.last_raw)
-            port.last_raw = None
-        port.fresh = False
-        return port.decoded
-
-    def is_fresh(self, role: str) -> bool:
-        return self._ports[role].fresh
-
-    def trigger(self) -> Any | None:
-        return self._trigger
 
 
 class _Context:
@@ -91,8 +60,8 @@ class Harness:
         self._events: list[tuple[int, int, int, str, Any]] = []  # (t, order, node, kind, payload)
         self._order = 0
         self._subscribers: dict[str, list[tuple[int, str]]] = defaultdict(list)
-        self._ports: list[dict[str, _Port]] = []
-        self._inboxes: list[_Inbox] = []
+        self._ports: list[dict[str, Subscription]] = []
+        self._inboxes: list[PortInbox] = []
         self._contexts: list[_Context] = []
         self._pending_tick: list[bool] = []
         self._seq: dict[str, int] = defaultdict(int)
@@ -121,18 +90,21 @@ class Harness:
         self._push(t, -1, "deliver", (channel, _encode(msg)))
 
     def _bind(self, i: int, b: Binding) -> None:
-        ports: dict[str, _Port] = {}
+        ports: dict[str, Subscription] = {}
         for role, typ in b.node.inputs.items():
             if role not in b.inputs:
                 raise KeyError(f"{b.node.name}: input role {role!r} is not bound to a channel")
             policy = b.node.trigger_policy if role == b.node.trigger_role else "newest"
-            ports[role] = _Port(typ, policy)
+            # the same inbox a live subscription fills, so a node cannot tell the difference
+            ports[role] = Subscription(
+                b.inputs[role], None if typ is bytes else typ, policy, capacity=HARNESS_QUEUE
+            )
             self._subscribers[b.inputs[role]].append((i, role))
         for role in b.node.outputs:
             if role not in b.outputs:
                 raise KeyError(f"{b.node.name}: output role {role!r} is not bound to a channel")
         self._ports.append(ports)
-        self._inboxes.append(_Inbox(ports))
+        self._inboxes.append(PortInbox(ports))
         self._contexts.append(_Context(self, i))
         self._pending_tick.append(False)
         self.exec_ns.append([])
@@ -248,11 +220,7 @@ class Harness:
         for j, role in self._subscribers.get(channel, ()):
             port = self._ports[j][role]
             node = self.bindings[j].node
-            if port.policy == "each":
-                port.queue.append(raw)
-            else:
-                port.last_raw = raw
-            port.fresh = True
+            port.put(raw)
             if node.trigger_role == role:
                 if port.policy == "each":
                     self._push(self.now_us, j, "trigger", None)
@@ -267,14 +235,9 @@ class Harness:
     def _tick_trigger(self, i: int) -> None:
         node = self.bindings[i].node
         port = self._ports[i][node.trigger_role]  # type: ignore[index]
-        if port.policy == "each":
-            if not port.queue:
-                return
-            msg = port.decode(port.queue.popleft())
-            port.decoded = msg
-            port.fresh = bool(port.queue)
-        else:
-            msg = self._inboxes[i].latest(node.trigger_role)  # type: ignore[arg-type]
+        msg = port.pop() if port.policy == "each" else port.latest()
+        if msg is None:
+            return
         self._tick(i, msg)
 
     def _tick(self, i: int, trigger: Any | None) -> None:
@@ -297,10 +260,10 @@ def _encode(msg: Any) -> bytes:
 
 
 def _decode_for_tap(channel: str, raw: bytes, h: Harness) -> Any:
-    for j, role in h._subscribers.get(channel, ()):
-        return h._ports[j][role].decode(raw)
-    # Nobody subscribes: find the publisher's declared type.
-    for b in h.bindings:
+    for j, role in h._subscribers.get(channel, ()):  # a subscriber's type
+        typ = h._ports[j][role].msg_type
+        return raw if typ is None else typ.decode(raw)  # type: ignore[attr-defined]
+    for b in h.bindings:  # nobody subscribes: the publisher's declared type
         for role, name in b.outputs.items():
             if name == channel:
                 typ = b.node.outputs[role]

@@ -26,6 +26,7 @@ from typing import Any
 from runtime.bus import Bus, Subscription
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.node import Node
+from runtime.port_buffer import PortInbox
 from runtime.timing import LoopTimer
 from runtime.udp import UdpReceiver, UdpSender
 
@@ -43,24 +44,6 @@ class _Context:
 
     def publish(self, role: str, msg: Any) -> None:
         self._runner._publish(role, msg)
-
-
-class _Inbox:
-    """Live implementation of ``runtime.node.Inbox``."""
-
-    def __init__(self, ports: dict[str, Port]) -> None:
-        self._ports = ports
-        self._trigger: Any | None = None
-
-    def latest(self, role: str) -> Any | None:
-        port = self._ports[role]
-        return port.latest() if port.fresh else port.peek()
-
-    def is_fresh(self, role: str) -> bool:
-        return self._ports[role].fresh
-
-    def trigger(self) -> Any | None:
-        return self._trigger
 
 
 def _set_timer_slack_ns(ns: int) -> bool:
@@ -141,7 +124,7 @@ class LiveRunner:
             report_period_s=1.0 / profile.timing_report_hz,
         )
         self.ctx = _Context(self)
-        self.inbox = _Inbox(self.ports)
+        self.inbox = PortInbox(self.ports)
         self._fds = [self.bus.fileno()] + [
             p.fileno() for p in self.ports.values() if isinstance(p, UdpReceiver)
         ]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Mapping
 from typing import Any, Literal
 
 Policy = Literal["newest", "each"]
@@ -89,3 +90,21 @@ class PortBuffer:
     def _stamp_arrival(self) -> None:
         self.received += 1
         self.last_receive_ns = time.monotonic_ns()
+
+
+class PortInbox:
+    """``runtime.node.Inbox`` over a node's port buffers, live and in the harness alike."""
+
+    def __init__(self, ports: Mapping[str, PortBuffer]) -> None:
+        self._ports = ports
+        self._trigger: Any | None = None
+
+    def latest(self, role: str) -> Any | None:
+        port = self._ports[role]
+        return port.latest() if port.fresh else port.peek()
+
+    def is_fresh(self, role: str) -> bool:
+        return self._ports[role].fresh
+
+    def trigger(self) -> Any | None:
+        return self._trigger
