@@ -7,6 +7,7 @@ process (or one restarted by the supervisor) picks the command up.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
@@ -45,8 +46,6 @@ def main(argv: list[str] | None = None) -> int:
             )
             return 2
     prof = _profile(args.profile)
-    import os
-
     url = os.environ.get("CASSIE_LCM_URL") or (
         prof.lcm_url if prof else "udpm://239.255.76.67:7667"
     )

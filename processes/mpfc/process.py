@@ -182,7 +182,6 @@ class MpfcNode(Node):
             self.stance = LEFT  # gait begins in double stance, where the OSC hands over
             self.touchdown_s = t
             self.next_touchdown_s = self.touchdown_s + p.t_s2s_s
-            self.stance_pos = self.kin.foot_points[LEFT].copy()
             self.solver.reset()
         elif t >= self.next_touchdown_s:  # touchdown of the swing foot: the stances swap
             self.stance = 1 - self.stance
@@ -210,7 +209,7 @@ class MpfcNode(Node):
             self.plan = sol
         else:
             self.failures += 1
-        self._publish(ctx, state, sol, sol.status, yaw)
+        self._publish(ctx, state, sol, sol.status, yaw, x)
 
     # -- outputs -------------------------------------------------------------------------------
     def _publish(
@@ -220,6 +219,7 @@ class MpfcNode(Node):
         sol: MpfcSolution | None,
         status: str,
         yaw: float = 0.0,
+        x_alip: np.ndarray | None = None,
     ) -> None:
         out = mpfc_output_t()
         out.header.utime = state.header.utime
@@ -270,8 +270,8 @@ class MpfcNode(Node):
         dbg.status_text = (
             self.last_status if sol is None or sol.has_plan else f"{status}: previous plan kept"
         )
-        if self.stance is not None:
-            dbg.initial_alip = self.kin.alip_state(self.stance_pos, yaw).tolist()
+        if x_alip is not None:  # the ALIP state this solve started from
+            dbg.initial_alip = x_alip.tolist()
         ctx.publish("debug", dbg)
 
     def status(self) -> str:
