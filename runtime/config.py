@@ -104,10 +104,10 @@ def process_gains(proc: ProcessConfig, default: Path, allow_params: bool = False
 def find_profile(name_or_path: str) -> Path:
     """A profile by path, or by name in hw_config/ (``sim`` -> ``hw_config/sim.yaml``)."""
     p = Path(name_or_path)
-    if p.exists():
+    if p.is_file():  # a file only: `sim` must not match the sim/ package folder
         return p.resolve()
     for candidate in (HW_CONFIG_DIR / name_or_path, HW_CONFIG_DIR / f"{name_or_path}.yaml"):
-        if candidate.exists():
+        if candidate.is_file():
             return candidate.resolve()
     known = sorted(x.stem for x in HW_CONFIG_DIR.glob("*.yaml") if _is_profile(x))
     raise ConfigError(

@@ -116,3 +116,12 @@ def test_a_file_included_twice_is_fine_but_a_cycle_is_reported(tmp_path):
     (tmp_path / "d.yaml").write_text("include: [c.yaml]\nlaunch: [ticker]\n")
     with pytest.raises(ConfigError, match=r"cycle: d.yaml -> c.yaml -> d.yaml"):
         load_profile(tmp_path / "d.yaml")
+
+
+def test_profile_by_name_is_found_in_hw_config_not_a_same_named_folder(monkeypatch):
+    from runtime.config import find_profile
+    from tests.conftest import REPO
+
+    monkeypatch.chdir(REPO)  # where the sim/ package folder is also called "sim"
+    assert find_profile("sim") == (HW_CONFIG_DIR / "sim.yaml").resolve()
+    assert load_profile("sim").name == "sim"
