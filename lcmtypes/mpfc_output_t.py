@@ -53,13 +53,13 @@ class mpfc_output_t(object):
 
         self.next_switch_time_s = 0.0
         """
-        sim time of the last touchdown / liftoff
+        sim time the current gait phase began (touchdown in double stance, liftoff in single)
         LCM Type: double
         """
 
         self.ankle_torque = 0.0
         """
-        sim time of the planned next touchdown
+        sim time it ends (liftoff in double stance, the planned touchdown in single)
         LCM Type: double
         """
 

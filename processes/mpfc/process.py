@@ -244,8 +244,12 @@ class MpfcNode(Node):
             out.next_footstep = [c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]]
             out.stance_foot_world = self.stance_pos.tolist()
             out.stance_yaw = yaw
-            out.prev_switch_time_s = self.touchdown_s
-            out.next_switch_time_s = self.next_touchdown_s
+            # the start of the current gait phase: the touchdown in double stance, the swing
+            # foot's liftoff (T_ds after it, Fig. 4) in single stance
+            out.prev_switch_time_s = self.touchdown_s + (0.0 if in_ds else self.params.t_ds_s)
+            # its end: the liftoff in double stance, the planned touchdown in single stance
+            out.next_switch_time_s = (self.touchdown_s + self.params.t_ds_s if in_ds
+                                      else self.next_touchdown_s)
             out.ankle_torque = 0.0 if in_ds else float(plan.ankle_torque_nm)
             out.num_footsteps = len(plan.footsteps)
             out.footsteps_world = plan.footsteps.tolist()

@@ -121,7 +121,7 @@ class StandInPlanner:
         msg.next_footstep = (target - self.stance_pos).tolist()
         msg.stance_yaw = 0.0
         msg.prev_switch_time_s = float(self.t_switch)
-        msg.next_switch_time_s = float(self.t_next if self.single else self.t_next + self.t_ss)
+        msg.next_switch_time_s = float(self.t_next)  # liftoff in double stance, else touchdown
         msg.ankle_torque = 0.0
         msg.desired_velocity = self.vdes.tolist()
         msg.num_footsteps = 1

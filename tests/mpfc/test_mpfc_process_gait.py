@@ -82,8 +82,10 @@ def test_gait_alternates_stance_with_step_durations_within_bounds():
     node, plans = _run(3.0, footholds="flat")
     assert len(plans) == 601
     assert all(p.solve_status == 0 for p in plans)
-    switches = sorted({round(p.prev_switch_time_s, 6) for p in plans})
-    steps = np.diff(switches)
+    # touchdowns start the double-stance phases; each phase's [prev, next) switch times bound it
+    touchdowns = sorted({round(p.prev_switch_time_s, 6) for p in plans
+                         if p.gait_state in GAIT_DS})
+    steps = np.diff(touchdowns)
     p = node.params
     # each MPFC stance phase = double stance T_ds + single stance in [t_min, t_max] (Sec. IV-D)
     assert len(steps) >= 6
@@ -91,12 +93,20 @@ def test_gait_alternates_stance_with_step_durations_within_bounds():
     assert np.all(steps <= p.t_ds_s + p.t_ss_max_s + 0.006)
     stances = [pl.stance for pl in plans]
     changes = [i for i in range(1, len(stances)) if stances[i] != stances[i - 1]]
-    assert len(changes) == len(switches) - 1
-    # double stance lasts T_ds after each touchdown, then single stance
+    assert len(changes) == len(touchdowns) - 1
+    # double stance lasts T_ds after each touchdown and ends at the liftoff, then single stance
+    # runs from the liftoff to the planned touchdown
     for pl in plans:
         t = pl.header.utime * 1e-6
-        expect = GAIT_DS if t - pl.prev_switch_time_s < p.t_ds_s else GAIT_SS
-        assert pl.gait_state == expect[pl.stance]
+        assert pl.prev_switch_time_s <= t + 1e-9
+        if pl.gait_state in GAIT_DS:
+            assert t - pl.prev_switch_time_s < p.t_ds_s + 1e-9
+            assert abs(pl.next_switch_time_s - pl.prev_switch_time_s - p.t_ds_s) < 1e-9
+        else:
+            assert pl.gait_state == GAIT_SS[pl.stance]
+            liftoff = pl.prev_switch_time_s
+            assert round(liftoff - p.t_ds_s, 6) in touchdowns
+            assert p.t_ss_min_s - 0.006 <= pl.next_switch_time_s - liftoff <= p.t_ss_max_s + 0.006
         assert all(math.isfinite(x) for x in pl.next_footstep_world)
         assert abs(pl.ankle_torque) <= p.ankle_torque_max_nm + 1e-6
 
