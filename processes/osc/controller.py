@@ -23,7 +23,7 @@ from .qp import OscQP
 from .safety import SafetyMonitor
 from .standing import StandingController
 from .tasks import OscParams, TaskLog
-from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, WalkingController
+from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, GaitPhase, WalkingController
 from .walking import STANDING as GAIT_STANDING
 
 WALKING, STANDING, SAFE = 0, 1, 2
@@ -85,6 +85,9 @@ class OscController:
         self.debug = OscDebug()
         self.stance = np.ones(4, dtype=bool)
         self.waiting = False  # walking asked, plan not yet in double stance
+        self._rigid_swing_springs = self.params.springs == "rigid_swing"
+        self._q = np.zeros(m.nq)
+        self._v = np.zeros(m.nv)
 
     # ------------------------------------------------------------------ public
     def reset(self) -> None:
@@ -109,6 +112,18 @@ class OscController:
         if fault is not None:
             return self._safe(q, v, fault, t0)
         m = self.model
+        swing = self._swing_leg(t_s, plan)
+        if swing is not None:
+            # The OSC's model holds the leaf springs rigid (14c). Fed the swing leg's measured
+            # deflection, the swing-foot feedback chases the springs' ringing through motors
+            # that cannot damp it (non-collocated) and the foot lands centimetres off target;
+            # the stance leg keeps its measured deflection (it sets the CoM height and the
+            # contact-point geometry the ALIP state is measured from).
+            self._q[:] = q
+            self._v[:] = v
+            self._q[m.spring_qpos[2 * swing : 2 * swing + 2]] = 0.0
+            self._v[m.spring_dof[2 * swing : 2 * swing + 2]] = 0.0
+            q, v = self._q, self._v
         try:
             m.update(q, v)
             fault = self._choose_mode(t_s, plan, command)
@@ -124,11 +139,12 @@ class OscController:
                 stance = self.walking.add_tasks(self.rows, self.log, self.qp, m, q, v, t_s,
                                                 plan, yaw_rate)
             else:
-                self.qp.ankle_index = -1
+                self.qp.moment_count = 0
                 stance = self.standing.add_tasks(self.rows, self.log, m, q, v, t_s)
             self.stance = stance
             fz_min = self.params.qp.standing_fz_min if self.mode == STANDING else 0.0
-            res = self.qp.solve(self.rows, stance, fz_min)
+            res = self.qp.solve(self.rows, stance, fz_min,
+                                self.walking.fz_max if self.mode == WALKING else None)
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:
             # a degenerate state (singular matrices, a malformed plan): damp, never crash
             self.safety.latch(f"controller error: {type(e).__name__}: {e}")
@@ -161,6 +177,13 @@ class OscController:
         return self.u.copy(), dbg
 
     # ------------------------------------------------------------------ internals
+    def _swing_leg(self, t: float, plan: Any | None) -> int | None:
+        """The leg swinging this tick whose springs the OSC treats as rigid, or None."""
+        if not self._rigid_swing_springs or self.mode != WALKING or not _plan_ok(plan):
+            return None
+        ph = GaitPhase.from_plan(plan, t)
+        return 1 - ph.stance if ph.single_stance else None
+
     def _choose_mode(self, t: float, plan: Any | None, command: Any | None) -> str | None:
         """Standing <-> walking hand-over; a fault string when walking lost its plan."""
         want_walk = command is not None and int(command.mode) == 0

@@ -124,6 +124,18 @@ class _Solver:
                 self.x_u[nu + 3 * i + a] = mu * fz_max
         self.ready = False
         self._no_lam = np.zeros(0)
+        self.nu = nu
+        self.fz_max = fz_max
+        self._bounds_changed = False
+
+    def set_fz_max(self, caps: np.ndarray) -> None:
+        """Per-point upper bounds on the normal force (N) for the next solves (one per stance
+        point, in row order): the double-stance weight transfer unloads the trailing foot."""
+        idx = self.nu + 2 + 3 * np.arange(len(caps))
+        cap = np.minimum(caps, self.fz_max)
+        if not np.array_equal(self.x_u[idx], cap):
+            self.x_u[idx] = cap
+            self._bounds_changed = True
 
     def closed_form(self, P: np.ndarray, c: np.ndarray, max_steps: int = 4
                     ) -> np.ndarray | None:
@@ -198,8 +210,11 @@ class _Solver:
             else:
                 self.solver.setup(P, c, None, None, None, None, None, self.x_l, self.x_u)
             self.ready = True
+        elif self._bounds_changed:
+            self.solver.update(P=P, c=c, x_u=self.x_u)
         else:
             self.solver.update(P=P, c=c)
+        self._bounds_changed = False
         status = self.solver.solve()
         res = self.solver.result
         return int(status.value), int(res.info.iter), res.x
@@ -243,24 +258,31 @@ class OscQP:
         self._R = np.zeros((nh, nu + 3 * ncp + 2))
         self._xs = np.zeros(nu + 3 * ncp + 2)
         self._row_cache: dict[bytes, np.ndarray] = {}
+        self._fz_default = np.full(ncp, self.wts.fz_max)
         self.u_prev = np.zeros(nu)
         self.lam_prev = np.zeros(3 * ncp)  # per contact point, kept across contact changes
         self.u = np.zeros(nu)
         self.lam = np.zeros(3 * ncp)
         self.dv = np.zeros(nv)
         self.lam_h = np.zeros(nh)
-        self.ankle_index = -1  # actuator index whose torque is pulled towards ankle_torque
-        self.ankle_torque = 0.0
-        self.ankle_weight = 0.0
+        #: Contact-moment cost w ||A lambda - target||^2 on the first ``moment_count`` rows:
+        #: each row of A gives the moment of the contact forces about a point along an axis
+        #: (the MPFC ankle torque of Section V-D, the double-stance CoP of (2)); 0 rows: off
+        self.moment_rows = np.zeros((2, 3 * ncp))
+        self.moment_target = np.zeros(2)
+        self.moment_count = 0
+        self.moment_weight = 0.0
         self.last_status = 0
 
-    def solve(self, tasks: TaskRows, stance: np.ndarray, fz_min: float = 0.0) -> QpResult:
+    def solve(self, tasks: TaskRows, stance: np.ndarray, fz_min: float = 0.0,
+              fz_max: np.ndarray | None = None) -> QpResult:
         """Build the condensed QP for the model's current state and solve it.
 
         ``stance`` is a bool mask over the 4 foot contact points (left front/rear, right
         front/rear); only those carry forces and the soft contact constraint (14d).
         ``fz_min`` is a lower bound on each stance point's normal force (standing keeps both
-        feet loaded with it).
+        feet loaded with it). ``fz_max`` (4 values, one per contact point) caps the normal
+        forces below the configured limit (the double-stance weight transfer).
         """
         t0 = time.perf_counter()
         m = self.model
@@ -320,16 +342,19 @@ class OscQP:
         wdt, wdf = self.wts.torque_change, self.wts.force_change
         c[:nu] -= wdt * self.u_prev
         c[nu:] -= wdf * self.lam_prev[rows]
-        if self.ankle_index >= 0 and self.ankle_weight > 0.0:
-            # Section V-D: quadratic on the difference from the MPFC ankle torque
-            j = self.ankle_index
-            P[j, j] += self.ankle_weight
-            c[j] -= self.ankle_weight * self.ankle_torque
+        k = self.moment_count
+        if k and self.moment_weight > 0.0:
+            # moments of the contact forces (the ALIP's u of (1) about its contact point)
+            A = self.moment_rows[:k, rows]
+            wA = self.moment_weight * A
+            P[nu:, nu:] += A.T @ wA
+            c[nu:] -= wA.T @ self.moment_target[:k]
 
         solver = self._solvers.get((nc, fz_min))
         if solver is None:
             solver = _Solver(n, nc, m.u_max, self.wts.mu, self.wts.fz_max, fz_min)
             self._solvers[(nc, fz_min)] = solver
+        solver.set_fz_max(self._fz_default[:nc] if fz_max is None else fz_max[stance])
         t1 = time.perf_counter()
         x = solver.closed_form(P, c) if self.closed_form_first else None
         if x is not None:

@@ -83,6 +83,9 @@ class SafetyParams:
     )
 
 
+SPRING_MODES = ("rigid_swing", "measured")
+
+
 @dataclass
 class OscParams:
     """Everything the OSC reads from ``hw_config/gains/osc.yaml``."""
@@ -91,6 +94,9 @@ class OscParams:
     walking: WalkingParams
     standing: StandingParams
     safety: SafetyParams
+    #: "rigid_swing": the OSC sees the swing leg's leaf springs at zero deflection (its model
+    #: holds them rigid, (14c)); "measured": every estimated deflection enters the kinematics
+    springs: str = "rigid_swing"
     source: str = "<defaults>"
 
     @classmethod
@@ -164,8 +170,13 @@ def _only(raw: dict[str, Any], allowed: tuple[str, ...], file: str, prefix: str)
 
 def _parse(raw: dict[str, Any], file: str) -> OscParams:
     for key in raw:
-        if key not in ("qp", "walking", "standing", "safety"):
-            raise ConfigError(file, key, "unknown section", "qp, walking, standing, safety")
+        if key not in ("qp", "walking", "standing", "safety", "springs"):
+            raise ConfigError(file, key, "unknown section",
+                              "qp, walking, standing, safety, springs")
+    springs = raw.get("springs", "rigid_swing")
+    if springs not in SPRING_MODES:
+        raise ConfigError(file, "springs", f"{springs!r} is not a spring mode",
+                          ", ".join(SPRING_MODES))
     q = _section(raw, "qp", file)
     qw = QpWeights()
     names = {f.name for f in fields(QpWeights)}
@@ -219,7 +230,8 @@ def _parse(raw: dict[str, Any], file: str) -> OscParams:
         damping=_vec(f.get("damping", [10.0, 10.0, 10.0, 10.0, 2.0] * 2), 10, file,
                      "safety.damping"),
     )
-    return OscParams(qp=qw, walking=walking, standing=standing, safety=safety, source=file)
+    return OscParams(qp=qw, walking=walking, standing=standing, safety=safety,
+                     springs=str(springs), source=file)
 
 
 # ---------------------------------------------------------------------- tasks

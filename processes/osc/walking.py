@@ -237,6 +237,17 @@ class SwingFootTrajectory:
         self.t_prev = t
 
 
+def _moment_row(row: np.ndarray, points: np.ndarray, idx: Any, about: np.ndarray,
+                axis: tuple[float, float, float]) -> None:
+    """Fill ``row`` (3 per contact point) with the moment along ``axis`` about ``about`` of
+    the forces at ``points[idx]``: axis . ((p_i - c) x f_i) = f_i . (axis x (p_i - c))."""
+    row[:] = 0.0
+    ax, ay, az = axis
+    for i in idx:
+        rx, ry, rz = (points[i] - about).tolist()
+        row[3 * i : 3 * i + 3] = (ay * rz - az * ry, az * rx - ax * rz, ax * ry - ay * rx)
+
+
 class WalkingController:
     """Task rows for one walking tick from the newest MPFC plan (Tables VI-VII, Section V)."""
 
@@ -248,6 +259,32 @@ class WalkingController:
         self._swing_key: tuple[int, float] | None = None
         self._zero3 = [0.0, 0.0, 0.0]
         self.phase: GaitPhase | None = None
+        #: per-contact-point normal-force caps for the QP (inf: only the configured limit)
+        self.fz_max = np.full(4, np.inf)
+
+    def _double_stance(self, qp: OscQP, m: CassieModel, plan: Any, t: float, stance: int,
+                       yaw: float) -> None:
+        """Weight transfer of the ALIP's double stance, f(t) = t / T_ds of (2) and (7): the
+        trailing foot may carry at most (1 - f) m g, so it lifts off unloaded and its leaf
+        springs do not ring through the swing (Section III-B), and the centre of pressure is
+        pulled towards p_CoP(t) = p_- + f (p_+ - p_-) of (2), where the MPFC's reset map (9)
+        assumes it is."""
+        self.fz_max[:] = np.inf
+        if int(plan.gait_state) not in (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT):
+            return  # a swing past its planned touchdown: both feet may carry the robot
+        t0, t1 = float(plan.prev_switch_time_s), float(plan.next_switch_time_s)
+        f = min(max((t - t0) / (t1 - t0), 0.0), 1.0) if t1 > t0 else 1.0
+        trail = 1 - stance
+        self.fz_max[2 * trail : 2 * trail + 2] = 0.5 * (1.0 - f) * m.mass * 9.81  # 2 points
+        if self.p.ankle_torque_weight > 0.0:
+            p_minus, p_plus = m.foot_center(trail), m.foot_center(stance)
+            cop = p_minus + f * (p_plus - p_minus)
+            c, s = math.cos(yaw), math.sin(yaw)
+            for r, axis in enumerate(((c, s, 0.0), (-s, c, 0.0))):
+                _moment_row(qp.moment_rows[r], m.p_contact, range(4), cop, axis)
+                qp.moment_target[r] = 0.0
+            qp.moment_count = 2
+            qp.moment_weight = self.p.ankle_torque_weight
 
     def reset(self) -> None:
         """Start a new walking episode: filters and swing plan from scratch."""
@@ -275,10 +312,12 @@ class WalkingController:
         # Pelvis roll/pitch to zero and the commanded yaw rate (Section V-C).
         self.pelvis.add(rows, log, m, v, p.pelvis, m.pelvis_yaw(), yaw_rate)
 
-        qp.ankle_index = -1
+        qp.moment_count = 0
         if not ph.single_stance:
             self._swing_key = None
+            self._double_stance(qp, m, plan, t, st, yaw)
             return _STANCE_MASKS[None]
+        self.fz_max[:] = np.inf
 
         # Swing foot: trajectory from (23), restarted at each new liftoff.
         key = (sw, round(ph.liftoff_s, 4))
@@ -294,15 +333,18 @@ class WalkingController:
         add_joint_task(rows, log, m, q, v, int(m.hip_yaw_qpos[sw]), int(m.hip_yaw_dof[sw]),
                        p.hip_yaw, 0.0, "swing_hip_yaw")
 
-        # Ankle torque cost (Section V-D). The MPFC torque u acts on the robot about the
-        # stance-frame y axis; the foot motor's reaction on the leg is -tau * axis, so
-        # tau = -u / (axis . y_stance).
-        y_st = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
-        proj = float(m.foot_axis[st] @ y_st)
-        if abs(proj) > 0.3 and p.ankle_torque_weight > 0.0:
-            qp.ankle_index = 4 if st == LEFT else 9
-            qp.ankle_torque = -float(plan.ankle_torque) / proj
-            qp.ankle_weight = p.ankle_torque_weight
+        # Ankle torque cost (Section V-D). The MPFC's u is the torque the ground applies to
+        # the robot about the stance contact point, along the stance frame's y axis: the ALIP
+        # state is about that point, so u = 0 must put the centre of pressure there (a cost
+        # on the toe motor instead would put it under the toe joint, ~2 cm along the blade,
+        # and push the robot forward every step).
+        if p.ankle_torque_weight > 0.0:
+            ey = (-math.sin(yaw), math.cos(yaw), 0.0)
+            _moment_row(qp.moment_rows[0], m.p_contact, (2 * st, 2 * st + 1),
+                        m.foot_center(st), ey)
+            qp.moment_target[0] = float(plan.ankle_torque)
+            qp.moment_count = 1
+            qp.moment_weight = p.ankle_torque_weight
         return _STANCE_MASKS[st]
 
 
