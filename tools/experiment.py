@@ -15,6 +15,10 @@ footstep outside a foothold).
 from __future__ import annotations
 
 import argparse
+import math
+import os
+import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -24,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from lcmtypes import command_t, ground_truth_t
+from lcmtypes import command_t, ground_truth_t, robot_state_t
+from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
 from runtime.config import HW_CONFIG_DIR, load_profile
 from runtime.harness import Binding, Harness
 from runtime.node import Node
@@ -55,6 +60,8 @@ class Trial:
     footsteps_outside: int = 0
     success: bool = False
     wall_s: float = 0.0
+    mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
+    timing: dict[str, dict[str, float]] = field(default_factory=dict)  # live runs: per loop
     notes: list[str] = field(default_factory=list)
 
 
@@ -70,16 +77,19 @@ class Operator(Node):
         self.vx = vx
         self.period_s = 0.05  # 20 Hz, as a radio sends
 
-    def tick(self, ctx: Any, inbox: Any) -> None:
+    def command(self, utime: int, gt: Any | None) -> command_t:
+        """The radio's message: walk at ``vx``, turning back to heading 0."""
         cmd = command_t()
-        cmd.header.utime = ctx.now_utime
+        cmd.header.utime = utime
         cmd.vx = self.vx
-        gt = inbox.latest("ground_truth")
         if gt is not None:
             w, x, y, z = gt.q[3:7]
             yaw = float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
             cmd.yaw_rate = -HEADING_GAIN * yaw
-        ctx.publish("command", cmd)
+        return cmd
+
+    def tick(self, ctx: Any, inbox: Any) -> None:
+        ctx.publish("command", self.command(ctx.now_utime, inbox.latest("ground_truth")))
 
 
 class Judge:
@@ -142,6 +152,25 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path) -> str:
     return str(HW_CONFIG_DIR / "terrains" / f"{name}.yaml")
 
 
+def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool, work: Path,
+                   mode: str | None = None) -> tuple[Path, list[str]]:
+    """The experiment's profile: the base one on ``terrain``, perception joining or not."""
+    base = load_profile(base_profile)
+    launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
+    if perception:
+        launch += [p for p in ("perception", "s3") if p not in launch]
+    prof_path = work / "experiment.yaml"
+    prof_path.write_text(
+        f"include: [{base_profile}]\nprofile: experiment_{name}\n"
+        + (f"mode: {mode}\n" if mode else "")
+        + f"launch: [{', '.join(launch)}]\n"
+        f"overrides: {{sim: {{params: {{terrain: '{terrain}', "
+        f"publish_footholds: {str(not perception).lower()}}}}}, "
+        f"mpfc: {{params: {{footholds: channel}}}}}}\n"
+    )
+    return prof_path, launch
+
+
 def run_trial(
     name: str,
     duration_s: float,
@@ -158,17 +187,7 @@ def run_trial(
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         terrain = _terrain_file(name, dmin, seed, work)
-        base = load_profile(base_profile)
-        launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
-        if perception:
-            launch += [p for p in ("perception", "s3") if p not in launch]
-        prof_path = work / "experiment.yaml"
-        prof_path.write_text(
-            f"include: [{base_profile}]\nprofile: experiment_{name}\n"
-            f"launch: [{', '.join(launch)}]\n"
-            f"overrides: {{sim: {{params: {{terrain: '{terrain}', "
-            f"publish_footholds: {str(not perception).lower()}}}}}}}\n"
-        )
+        prof_path, launch = _write_profile(base_profile, name, terrain, perception, work)
         profile = load_profile(prof_path)
         ter = terrain_mod.load_terrain(terrain)
         h = Harness.from_profile(profile)
@@ -187,6 +206,123 @@ def run_trial(
         h.run_until(int(duration_s * 1e6), stop=lambda: judge.fall_t is not None)
         trial.wall_s = time.perf_counter() - t0
         h.close()
+    return _verdict(trial, judge, launch)
+
+
+def run_live_trial(
+    name: str,
+    duration_s: float,
+    seed: int,
+    dmin: float | None,
+    perception: bool,
+    vx: float,
+    mode: str,
+    base_profile: Path = HW_CONFIG_DIR / "sim.yaml",
+    log_dir: Path | None = None,
+) -> Trial:
+    """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
+    ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
+    is the operator's radio and the judge, on the bus. Timing comes from the log afterwards."""
+    from runtime.bus import Bus
+    from sim import terrain as terrain_mod
+    from tools.report import analyse, load_budgets
+
+    trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx, mode=mode)
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        logs = log_dir if log_dir is not None else work / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        terrain = _terrain_file(name, dmin, seed, work)
+        prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
+        profile = load_profile(prof_path)
+        ter = terrain_mod.load_terrain(terrain)
+        # the trial starts when the sim releases the holder (the OSC's first torque): the
+        # processes take seconds to start while the sim already runs
+        judge = Judge(list(ter.footholds), math.inf)
+        operator = Operator(vx)
+        bus = Bus(profile.lcm_url, source="operator")
+        newest: list[Any] = [None]
+
+        def on_gt(_channel: str, data: bytes) -> None:
+            try:
+                gt = ground_truth_t.decode(data)
+            except (ValueError, KeyError):
+                return
+            newest[0] = gt
+            judge(0, gt)
+
+        def on_state(_channel: str, data: bytes) -> None:
+            if not math.isinf(judge.walk_start_s):
+                return
+            try:
+                st = robot_state_t.decode(data)
+            except (ValueError, KeyError):
+                return
+            if not st.target_status & STATUS_HOLDER_ENGAGED:
+                judge.walk_start_s = st.header.utime * 1e-6
+
+        bus.subscribe_raw(f"^{profile.channels['ground_truth'].name}$", on_gt)
+        bus.subscribe_raw(f"^{profile.channels['network_state'].name}$", on_state)
+        cmd_channel = profile.channels["command"].name
+        out = (logs / "supervisor.txt").open("w")
+        sup = subprocess.Popen(
+            [sys.executable, "-m", "tools.cli", "launch", str(prof_path), "--no-live", "--log",
+             "--log-dir", str(logs)],
+            stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+        )
+        # sim time runs at most at wall-clock speed; lockstep on 2 busy cores is much slower
+        wall_limit = 120.0 + duration_s * (60.0 if mode == "lockstep" else 4.0)
+        t0 = time.perf_counter()
+        next_cmd = t0
+        try:
+            while sup.poll() is None and time.perf_counter() - t0 < wall_limit:
+                bus.drain(0.01)
+                now = time.perf_counter()
+                if now >= next_cmd:
+                    gt = newest[0]
+                    utime = gt.header.utime if gt is not None else 0
+                    bus.publish(cmd_channel, operator.command(utime, gt))
+                    next_cmd = now + operator.period_s
+                if judge.fall_t is not None or judge.t_last - judge.walk_start_s >= duration_s:
+                    break
+        finally:
+            trial.wall_s = time.perf_counter() - t0
+            if sup.poll() is None:
+                sup.send_signal(signal.SIGINT)
+                try:
+                    sup.wait(30)
+                except subprocess.TimeoutExpired:
+                    os.killpg(sup.pid, signal.SIGKILL)
+                    sup.wait()
+            out.close()
+            bus.close()
+        walked = judge.t_last - judge.walk_start_s if judge.x0 is not None else 0.0
+        if walked < duration_s and judge.fall_t is None:
+            trial.notes.append(
+                f"stopped after {walked:.2f} s of walking of {duration_s:g} s "
+                f"(supervisor exit code {sup.returncode}, wall {trial.wall_s:.0f} s); "
+                f"see {logs / 'supervisor.txt'}")
+        log_file = logs / "lcm.log"
+        if log_file.exists():
+            rep = analyse(log_file, load_budgets(HW_CONFIG_DIR / "budgets.yaml"))
+            trial.timing = {
+                key: {k: row[k] for k in ("ticks", "deadline_ms", "deadline_misses", "miss_ratio",
+                                          "exec_p50_ms", "exec_p99_ms", "exec_max_ms",
+                                          "stale_skipped") if k in row}
+                for key, row in rep["loops"].items()
+            }
+        else:
+            trial.notes.append("no LCM log was recorded: no timing summary")
+    _verdict(trial, judge, launch)
+    trial.duration_s = walked
+    if walked < duration_s - 0.01 and judge.fall_t is None:
+        trial.success = False
+    return trial
+
+
+def _verdict(trial: Trial, judge: Judge, launch: list[str]) -> Trial:
+    """Fill the trial's figures from what the judge saw."""
+    vx = trial.commanded_velocity_mps
     trial.duration_s = judge.t_last
     trial.fell = judge.fall_t is not None
     trial.fall_time_s = judge.fall_t if judge.fall_t is not None else -1.0
@@ -209,6 +345,18 @@ def run_trial(
     return trial
 
 
+def print_timing(timing: dict[str, dict[str, float]]) -> None:
+    """The live run's loops: ticks, deadline misses and tick times (from the LCM log)."""
+    print("\n  loop timing (from the LCM log)")
+    print(f"  {'loop':34s} {'ticks':>8s} {'deadline':>9s} {'misses':>8s} {'miss %':>7s} "
+          f"{'exec med':>9s} {'p99':>7s} {'max':>7s}")
+    for key, r in timing.items():
+        print(f"  {key:34s} {int(r.get('ticks', 0)):8d} {r.get('deadline_ms', 0):7.2f}ms "
+              f"{int(r.get('deadline_misses', 0)):8d} {100 * r.get('miss_ratio', 0):6.2f}% "
+              f"{r.get('exec_p50_ms', 0):7.3f}ms {r.get('exec_p99_ms', 0):5.2f}ms "
+              f"{r.get('exec_max_ms', 0):5.2f}ms")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="cassie experiment",
@@ -224,26 +372,40 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
     ap.add_argument("--profile", type=Path, default=HW_CONFIG_DIR / "experiment.yaml")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument(
+        "--launch",
+        choices=("lockstep", "realtime"),
+        default=None,
+        help="run the real multi-process stack (cassie launch of hw_config/sim.yaml) in this "
+        "mode instead of the deterministic harness; prints the loops' timing from its log",
+    )
+    ap.add_argument("--log-dir", type=Path, default=None,
+                    help="--launch: keep the LCM log and process logs here")
     args = ap.parse_args(argv)
     if args.dmin is not None and args.name != "stones":
         ap.error("--dmin is for the stones experiment")
     if args.duration <= 0 or args.trials < 1:
         ap.error("--duration must be > 0 and --trials >= 1")
-    trials = [
-        run_trial(
-            args.name,
-            args.duration,
-            args.seed + i,
-            args.dmin,
-            args.perception,
-            args.vx,
-            args.profile,
-        )
-        for i in range(args.trials)
-    ]
+    if args.launch:
+        base = args.profile if args.profile != HW_CONFIG_DIR / "experiment.yaml" else (
+            HW_CONFIG_DIR / "sim.yaml")
+        trials = [
+            run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
+                           args.vx, args.launch, base,
+                           args.log_dir / f"trial{i}" if args.log_dir else None)
+            for i in range(args.trials)
+        ]
+    else:
+        trials = [
+            run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
+                      args.vx, args.profile)
+            for i in range(args.trials)
+        ]
     for tr in trials:
-        rows = {k: v for k, v in asdict(tr).items() if k != "notes"}
+        rows = {k: v for k, v in asdict(tr).items() if k not in ("notes", "timing")}
         print_table(f"experiment {tr.experiment}, seed {tr.seed}", rows)
+        if tr.timing:
+            print_timing(tr.timing)
         for note in tr.notes:
             print(f"  note: {note}")
     ok = sum(t.success for t in trials)
@@ -262,6 +424,12 @@ def main(argv: list[str] | None = None) -> int:
     }
     if args.dmin is not None:
         figures["dmin_m"] = args.dmin
+    if args.launch:
+        figures["mode"] = args.launch
+        figures["description"] = f"{args.name} with cassie launch in {args.launch} mode"
+        for key, row in trials[0].timing.items():
+            for k, v in row.items():
+                figures[f"{key}/{k}"] = v
     print(f"\n{ok}/{len(trials)} trials succeeded")
     write_json(args.json, f"experiment_{args.name}", figures)
     return 0

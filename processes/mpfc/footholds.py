@@ -248,10 +248,16 @@ class WorldFootholds:
         self.alpha = self.d3 / self.n3[:, 2]
 
     def local(
-        self, p_stance: np.ndarray, yaw: float, max_count: int, max_distance: float
+        self, p_stance: np.ndarray, yaw: float, max_count: int, max_distance: float,
+        anchor: float = 0.0,
     ) -> LocalFootholds:
         """Prune by horizontal distance to the stance foot (nearest first, at most `max_count`
-        within `max_distance`), then express the kept footholds in the stance frame."""
+        within `max_distance`), then express the kept footholds in the stance frame.
+
+        With ``anchor`` > 0 and a foothold within that distance of the stance foot, heights
+        are taken relative to that foothold's plane under the foot rather than to the foot's
+        own z: the foot stands on it, so this cancels a vertical offset between the footholds'
+        frame and the state estimate's (drift; ground-truth footholds in an estimated frame)."""
         p_stance = np.asarray(p_stance, dtype=float)
         s2 = p_stance[:2]
         m_all = self.index.shape[0]
@@ -272,7 +278,11 @@ class WorldFootholds:
         ed = self.Ed[order] @ r2
         # plane z_w = alpha + beta . (s + R2 p)  ->  z_local = z_w - s_z
         beta = self.beta[order] @ r2
-        alpha = self.alpha[order] + self.beta[order] @ s2 - p_stance[2]
+        z_ref = p_stance[2]
+        if anchor > 0.0 and len(order) and d2[order[0]] <= anchor * anchor:
+            k = order[0]  # the nearest foothold: the one the stance foot stands on
+            z_ref = float(self.alpha[k] + self.beta[k] @ s2)
+        alpha = self.alpha[order] + self.beta[order] @ s2 - z_ref
         if len(order):
             flat = v.reshape(-1, 2)
             box_lo = flat.min(axis=0)

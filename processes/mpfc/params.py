@@ -44,6 +44,7 @@ class MpfcParams:
     trust_region_rate_mps: float = 1.0
     foothold_max_count: int = 20
     foothold_max_distance_m: float = 2.0
+    foothold_anchor_m: float = 0.05  # heights relative to the foothold under the stance foot
     min_normal_z: float = 0.2
     time_limit_ms: float = 30.0
     search: str = "auto"
@@ -115,6 +116,7 @@ class MpfcParams:
                      "qp_eps_abs", "optimality_rel_tol"):
             need(getattr(self, name) > 0.0, name, f"must be > 0, got {getattr(self, name)}", "> 0")
         for name in ("w_time", "w_ankle", "soft_constraint_cost", "step_width_m",
+                     "foothold_anchor_m",
                      "crossover_margin_m", "trust_region_start_s", "trust_region_rate_mps",
                      "qp_eps_rel"):
             need(getattr(self, name) >= 0.0, name, f"must be >= 0, got {getattr(self, name)}",

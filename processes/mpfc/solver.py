@@ -101,7 +101,8 @@ class MpfcSolver:
         t_star = float(t_remaining_s)
         rot = yaw_rotation(yaw)
         world = self._world_footholds(footholds)
-        lf = world.local(p_stance, yaw, p.foothold_max_count, p.foothold_max_distance_m)
+        lf = world.local(p_stance, yaw, p.foothold_max_count, p.foothold_max_distance_m,
+                         p.foothold_anchor_m)
         prev = self._prev
         # same stance phase: same side, and the stance foot has not moved (a left-right-left
         # sequence with failed solves in between is a new phase)

@@ -18,8 +18,12 @@ from processes.mpfc.problem import MpfcModel  # noqa: E402
 
 @pytest.fixture(scope="session")
 def params() -> MpfcParams:
-    """Hardware parameters of Table V, from hw_config/gains/mpfc.yaml."""
-    return MpfcParams.from_yaml(ROOT / "hw_config" / "gains" / "mpfc.yaml", "hardware")
+    """Hardware parameters of Table V, from hw_config/gains/mpfc.yaml, with absolute foothold
+    heights: the generated instances put the stance foot anywhere, not on a foothold."""
+    import dataclasses
+
+    p = MpfcParams.from_yaml(ROOT / "hw_config" / "gains" / "mpfc.yaml", "hardware")
+    return dataclasses.replace(p, foothold_anchor_m=0.0)
 
 
 @pytest.fixture(scope="session")

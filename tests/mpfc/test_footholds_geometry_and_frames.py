@@ -69,3 +69,22 @@ def test_pruning_keeps_the_nearest_within_distance() -> None:
     assert list(lf.index) == [0, 1, 4]  # far one (index 3) and the steep one dropped
     lf = world.local(np.array([0.1, 0.1, 0.0]), 0.0, 10, 2.0)
     assert sorted(lf.index) == [0, 1, 2, 4]
+
+
+def test_anchor_takes_heights_relative_to_the_foothold_under_the_stance_foot() -> None:
+    """A state estimate 1.4 cm below the footholds' frame (vertical drift): without the
+    anchor the next stone looks 1.4 cm higher than it is; with it, its height is relative to
+    the stone the stance foot stands on, in the estimate's frame."""
+    low = Foothold.from_polygon(np.array([[-0.2, -0.2], [0.2, -0.2], [0.2, 0.2], [-0.2, 0.2]]))
+    high = Foothold.from_polygon(np.array([[0.3, -0.2], [0.6, -0.2], [0.6, 0.2], [0.3, 0.2]]),
+                                 offset=0.15)
+    world = WorldFootholds([low, high], 0.2)
+    foot = np.array([0.0, 0.0, -0.014])  # on `low`, as the drifted estimate sees it
+    absolute = world.local(foot, 0.0, 10, 2.0)
+    anchored = world.local(foot, 0.0, 10, 2.0, anchor=0.05)
+    i = list(anchored.index).index(1)
+    assert np.isclose(absolute.alpha[i], 0.15 + 0.014)
+    assert np.isclose(anchored.alpha[i], 0.15)  # the true rise from one stone to the next
+    # a stance foot off every foothold (beyond the anchor distance) keeps absolute heights
+    away = world.local(np.array([0.0, 0.5, -0.014]), 0.0, 10, 2.0, anchor=0.05)
+    assert np.allclose(np.sort(away.alpha), np.sort(absolute.alpha))

@@ -116,7 +116,16 @@ def test_footsteps_land_on_ground_truth_stones():
     assert node.footholds, "the stones terrain gave no footholds"
     last = plans[-1]
     step = np.array(last.next_footstep_world)
-    assert any(f.contains(step, tol=1e-4) for f in node.footholds)
+    stance = np.array(last.stance_foot_world)
+    on = [f for f in node.footholds if f.contains(np.r_[step[:2], f.height_at(step[:2])], 1e-4)]
+    assert on, "the footstep is on no stone"
+    # heights are relative to the stone under the stance foot (foothold_anchor_m): the step's
+    # z is the stance foot's z plus the height difference between the two stones
+    under = [f for f in node.footholds
+             if f.contains(np.r_[stance[:2], f.height_at(stance[:2])], 0.05)]
+    if under:
+        rise = on[0].height_at(step[:2]) - under[0].height_at(stance[:2])
+        assert abs(step[2] - (stance[2] + rise)) < 1e-6
 
 
 def test_bad_foothold_source_names_the_key():

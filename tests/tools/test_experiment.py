@@ -43,3 +43,16 @@ def test_experiment_without_a_controller_is_reported_as_failed_not_faked(tmp_pat
     assert not trial.fell and trial.min_pelvis_height_m > 0.9  # held by the start-up holder
     assert abs(trial.distance_m) < 0.01
     assert not trial.success
+
+
+def test_short_flat_walk_in_the_harness_keeps_up_with_the_command():
+    """The whole stack (sim, estimator, bridge, OSC, MPFC) in the deterministic harness: Cassie
+    leaves the holder, walks 6 s of sim time on flat ground without falling, at the commanded
+    speed within 15%, with one touchdown per planned step."""
+    trial = run_trial("flat", 6.0, 0, None, False, 0.375, HW_CONFIG_DIR / "experiment.yaml")
+    assert not trial.fell, trial
+    assert trial.min_pelvis_height_m > 0.85
+    assert trial.velocity_error_ratio <= 0.15, trial.mean_velocity_mps
+    # T_ss + T_ds = 0.4 s per step: about 15 steps in 6 s (the first starts after 0.1 s)
+    assert 12 <= trial.footsteps <= 16, trial.footsteps
+    assert trial.success

@@ -1,8 +1,8 @@
 """`cassie bench osc`: OSC tick time (build + solve of the QP (14)) on recorded robot states.
 
 States are recorded first from closed-loop MuJoCo runs at 2 kHz in lockstep: a standing run,
-then a walking run (standing hand-over, then stepping on plans from the ALIP stand-in planner
-``processes.osc.standin_planner``, which takes MPFC's place here). A fresh controller then
+then a walking run (standing hand-over, then walking at 0.375 m/s on the plans of the MPFC
+node of ``hw_config/sim.yaml``, solved at 200 Hz on the true state). A fresh controller then
 replays each recording in order, and every ``update`` call is timed (wall clock), with piqp's
 share measured separately. The collector is disabled during the timed loops, as the live OSC
 loop does. Figures are printed and optionally written as flat JSON; nothing is asserted.
@@ -23,14 +23,36 @@ from tools.benchmarks.common import print_table, summarize, write_json
 DEADLINE_MS = 1.0
 
 
+class _MpfcPorts:
+    """The MPFC node's context and inbox for a direct call (no bus): newest state, command."""
+
+    def __init__(self) -> None:
+        self.out: dict[str, Any] = {}
+        self.state: Any = None
+        self.command: Any = None
+
+    def publish(self, role: str, msg: Any) -> None:
+        self.out[role] = msg
+
+    def trigger(self) -> Any:
+        return self.state
+
+    def is_fresh(self, role: str) -> bool:
+        return role == "command" and self.command is not None
+
+    def latest(self, role: str) -> Any:
+        return self.command if role == "command" else None
+
+
 def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, Any, Any]]:
     """Run the OSC closed loop in MuJoCo and keep (t, q, v, plan, command) of every tick."""
     import mujoco
 
-    from lcmtypes import command_t
+    from lcmtypes import command_t, robot_state_t
+    from processes.mpfc.process import make_node
     from processes.osc.controller import SAFE, OscController
-    from processes.osc.model import CassieModel, load_cassie, standing_pose
-    from processes.osc.standin_planner import StandInPlanner
+    from processes.osc.model import load_cassie, standing_pose
+    from runtime.config import HW_CONFIG_DIR, load_profile
 
     m = load_cassie()
     m.opt.impratio = 10.0
@@ -38,17 +60,26 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     d.qpos[:] = standing_pose(m)
     mujoco.mj_forward(m, d)
     osc = OscController()
-    planner = StandInPlanner(CassieModel(m))
+    profile = load_profile(HW_CONFIG_DIR / "sim.yaml")
+    mpfc = make_node(profile.processes["mpfc"], profile)
+    ctx, inbox = _MpfcPorts(), _MpfcPorts()
     cmd = command_t()
     cmd.mode = 1
+    cmd.vx = 0.375
     plan = None
     out: list[tuple[float, np.ndarray, np.ndarray, Any, Any]] = []
     for k in range(ticks):
         t = float(d.time)
         if kind == "walking" and t >= 0.25:
             cmd.mode = 0
-            if k % 10 == 0:  # the planner at 200 Hz
-                plan = planner.plan(t, d.qpos, d.qvel)
+            if k % 10 == 0:  # the MPFC at 200 Hz, on the true state
+                s = robot_state_t()
+                s.header.utime = round(t * 1e6)
+                s.num_positions, s.num_velocities = m.nq, m.nv
+                s.q, s.v = d.qpos.tolist(), d.qvel.tolist()
+                inbox.state, inbox.command = s, cmd
+                mpfc.tick(ctx, inbox)
+                plan = ctx.out["plan"]
         cmd.yaw_rate = -2.0 * osc.model.pelvis_yaw() if k > 0 else 0.0  # operator steering
         c = None
         if kind == "walking":
