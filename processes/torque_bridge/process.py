@@ -27,6 +27,7 @@ from runtime.cassie_packets import (
 )
 from runtime.config import process_gains
 from runtime.config_types import ProcessConfig, Profile
+from runtime.errors import ConfigError
 from runtime.node import Context, Inbox, Node
 
 from .bridge import DEFAULT_GAINS_FILE, SOURCE_COMMAND, BridgeParams, TorqueBridge
@@ -58,8 +59,16 @@ class TorqueBridgeNode(Node):
     trigger_role = "state"
     trigger_policy = "newest"
 
-    def __init__(self, params: BridgeParams | None = None) -> None:
+    def __init__(self, params: BridgeParams | None = None, answer_on: str = "state") -> None:
         self.params = params or BridgeParams()
+        if answer_on == "torque":
+            # lockstep: answer a state once the controller has run on it, so the target PC
+            # steps only after the whole chain (estimator -> OSC -> here) has seen its state;
+            # the torque sent is the one computed from the state before (the robot's one-tick
+            # latency, made exact), so lockstep runs behave as the 2 kHz cycle does
+            self.trigger_role = "torque"
+        self.unmatched = 0  # lockstep: torques that did not answer the newest state
+        self._pending: tuple[list[float], int] | None = None
         self.bridge = TorqueBridge(self.params)
         self.link = LinkCounter()
         self.pkt = InputPacket()
@@ -70,16 +79,35 @@ class TorqueBridgeNode(Node):
 
     def setup(self, ctx: Context) -> None:
         self._dofs = motor_dofs()
+        if self.trigger_role == "torque":
+            # nothing to answer before the controller's first torque: say so (this is also
+            # the supervisor's sign that the bridge is up)
+            m = self._msg
+            m.header.utime = 0
+            m.torque = [0.0] * NUM_MOTORS
+            m.commanded = [0.0] * NUM_MOTORS
+            m.status = "lockstep: waiting for the first torque command"
+            ctx.publish("applied_input", m)
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:
-        state = inbox.trigger() or inbox.latest("state")
-        if state is None:
-            return
         b = self.bridge
-        if inbox.is_fresh("torque"):
-            cmd = inbox.latest("torque")
-            if cmd is not None:
-                b.on_command(cmd.torque, cmd.header.utime)
+        if self.trigger_role == "torque":
+            cmd = inbox.trigger()
+            state = inbox.latest("state")
+            if cmd is None or state is None or cmd.header.utime != state.header.utime:
+                self.unmatched += 1  # an older state's torque: the newest one's is coming
+                return
+            if self._pending is not None:
+                b.on_command(*self._pending)
+            self._pending = (list(cmd.torque), int(cmd.header.utime))
+        else:
+            state = inbox.trigger() or inbox.latest("state")
+            if state is None:
+                return
+            if inbox.is_fresh("torque"):
+                cmd = inbox.latest("torque")
+                if cmd is not None:
+                    b.on_command(cmd.torque, cmd.header.utime)
         v = state.v
         if self._dofs is not None and len(v) > int(self._dofs.max()):
             self._mv[:] = [v[i] for i in self._dofs]
@@ -116,8 +144,21 @@ class TorqueBridgeNode(Node):
 
 def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     """Build the bridge: settings from ``proc.gains_file`` (relative to hw_config), else
-    ``hw_config/gains/torque_bridge.yaml``; no free-form ``params`` are accepted."""
-    path = process_gains(proc, DEFAULT_GAINS_FILE)
-    node = TorqueBridgeNode(BridgeParams.from_yaml(path))
+    ``hw_config/gains/torque_bridge.yaml``. ``params.answer_on``: ``state`` (each robot state
+    is answered with the newest torque, as on the robot), ``torque`` (each torque answers the
+    state it was computed from: the sim's lockstep waits for the controller) or ``auto``
+    (torque in lockstep profiles, state otherwise)."""
+    path = process_gains(proc, DEFAULT_GAINS_FILE, allow_params=True)
+    answer = str(proc.params.get("answer_on", "auto"))
+    for key in proc.params:
+        if key != "answer_on":
+            raise ConfigError(str(proc.source_file), proc.key("params", str(key)),
+                              "unknown parameter", "answer_on")
+    if answer not in ("auto", "state", "torque"):
+        raise ConfigError(str(proc.source_file), proc.key("params", "answer_on"),
+                          f"unknown value {answer!r}", "auto, state, torque")
+    if answer == "auto":
+        answer = "torque" if profile.mode == "lockstep" else "state"
+    node = TorqueBridgeNode(BridgeParams.from_yaml(path), answer)
     node.name = proc.name
     return node
