@@ -112,7 +112,8 @@ class OscController:
         if fault is not None:
             return self._safe(q, v, fault, t0)
         m = self.model
-        swing = self._swing_leg(t_s, plan)
+        plan_ok = plan is not None and _plan_ok(plan)
+        swing = self._swing_leg(t_s, plan if plan_ok else None)
         if swing is not None:
             # The OSC's model holds the leaf springs rigid (14c). Fed the swing leg's measured
             # deflection, the swing-foot feedback chases the springs' ringing through motors
@@ -126,7 +127,7 @@ class OscController:
             q, v = self._q, self._v
         try:
             m.update(q, v)
-            fault = self._choose_mode(t_s, plan, command)
+            fault = self._choose_mode(t_s, plan, command, plan_ok)
             if fault is not None:
                 return self._safe(q, v, fault, t0)
             if self.mode == STANDING and not self.standing.started:
@@ -179,15 +180,16 @@ class OscController:
     # ------------------------------------------------------------------ internals
     def _swing_leg(self, t: float, plan: Any | None) -> int | None:
         """The leg swinging this tick whose springs the OSC treats as rigid, or None."""
-        if not self._rigid_swing_springs or self.mode != WALKING or not _plan_ok(plan):
-            return None
+        if not self._rigid_swing_springs or self.mode != WALKING or plan is None:
+            return None  # (plan: None unless it passed _plan_ok this tick)
         ph = GaitPhase.from_plan(plan, t)
         return 1 - ph.stance if ph.single_stance else None
 
-    def _choose_mode(self, t: float, plan: Any | None, command: Any | None) -> str | None:
+    def _choose_mode(self, t: float, plan: Any | None, command: Any | None,
+                     plan_ok: bool) -> str | None:
         """Standing <-> walking hand-over; a fault string when walking lost its plan."""
         want_walk = command is not None and int(command.mode) == 0
-        if plan is not None and not _plan_ok(plan):
+        if plan is not None and not plan_ok:
             if self.mode == WALKING:
                 self.safety.latch("invalid MPFC plan (non-finite or unknown gait state)")
                 return self.safety.fault

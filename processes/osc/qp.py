@@ -127,15 +127,21 @@ class _Solver:
         self.nu = nu
         self.fz_max = fz_max
         self._bounds_changed = False
+        self._caps_default = True  # x_u holds fz_max on every point
+        self._fz_idx = nu + 2 + 3 * np.arange(nc)
 
     def set_fz_max(self, caps: np.ndarray) -> None:
         """Per-point upper bounds on the normal force (N) for the next solves (one per stance
         point, in row order): the double-stance weight transfer unloads the trailing foot."""
-        idx = self.nu + 2 + 3 * np.arange(len(caps))
+        default = caps.min() >= self.fz_max
+        if default and self._caps_default:
+            return  # the usual single-stance case: nothing to compare or copy
+        idx = self._fz_idx[: len(caps)]
         cap = np.minimum(caps, self.fz_max)
         if not np.array_equal(self.x_u[idx], cap):
             self.x_u[idx] = cap
             self._bounds_changed = True
+        self._caps_default = bool(default)
 
     def closed_form(self, P: np.ndarray, c: np.ndarray, max_steps: int = 4
                     ) -> np.ndarray | None:
