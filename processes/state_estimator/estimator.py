@@ -177,8 +177,12 @@ class CassieEstimator:
         return f"IMU quaternion norm {np.sqrt(n):.3f} is not 1"
 
     # -- the update --------------------------------------------------------------------------
-    def update(self, pkt: OutputPacket, gap: bool = False) -> Estimate:
-        """Estimate from one decoded packet (``check`` it first); ``gap``: packets were lost."""
+    def update(self, pkt: OutputPacket, gap: bool = False, alip: bool = True) -> Estimate:
+        """Estimate from one decoded packet (``check`` it first); ``gap``: packets were lost.
+
+        ``alip``: also update the CoM, the angular momentum and the ALIP Kalman filter (the
+        MPFC's input); the process asks for it on the packets it sends to the laptop (200 Hz),
+        the rest of the estimate is updated on every packet."""
         kin, f = self.kin, self.filter
         kin.update(pkt.motor_pos, pkt.motor_vel, pkt.joint_pos, pkt.joint_vel)
         utime = pkt.utime
@@ -202,7 +206,7 @@ class CassieEstimator:
             elif not flags[k] and f.contact[k]:
                 f.liftoff(k)
         f.correct(h)
-        self._fill(pkt, gap)
+        self._fill(pkt, gap, alip)
         self.updates += 1
         return self.est
 
@@ -253,7 +257,7 @@ class CassieEstimator:
         self.updates = 0
         self.initialized = True
 
-    def _fill(self, pkt: OutputPacket, gap: bool) -> None:
+    def _fill(self, pkt: OutputPacket, gap: bool, alip: bool = True) -> None:
         """Write ``q``, ``v``, contact and the ALIP state into the preallocated estimate.
 
         3-vector arithmetic is scalar Python on purpose: cheaper than numpy's per-call cost.
@@ -286,6 +290,17 @@ class CassieEstimator:
         est.in_contact[0], est.in_contact[1] = f.contact[0], f.contact[1]
         est.force[:] = self.contact.force
         est.spring_defl[:] = kin.spring_defl[:, 0]
+        k0, k1 = f.contact
+        status = 0
+        if self.updates < 200:
+            status |= STATUS_INITIALIZING
+        if not (k0 or k1):
+            status |= STATUS_NO_CONTACT
+        if gap:
+            status |= STATUS_PACKET_GAP
+        est.status = status
+        if not alip:
+            return  # CoM, momentum and the ALIP filter run at the laptop's rate
         # ALIP state (Section III-A): CoM relative to the stance contact point, momentum about it
         vb = self._vb  # pelvis velocity in the pelvis frame, R^T v
         vb[0] = r00 * vx + r10 * vy + r20 * vz
@@ -304,19 +319,10 @@ class CassieEstimator:
         com[0], com[1], com[2] = cx, cy, cz
         cv[0], cv[1], cv[2] = gx, gy, gz
         stance = est.alip_stance
-        k0, k1 = f.contact
         if k0 != k1:
             stance = 0 if k0 else 1
         elif k0 and stance < 0:
             stance = 0  # double stance from the start: the left foot, by convention
-        status = 0
-        if self.updates < 200:
-            status |= STATUS_INITIALIZING
-        if not (k0 or k1):
-            status |= STATUS_NO_CONTACT
-        if gap:
-            status |= STATUS_PACKET_GAP
-        est.status = status
         if stance < 0:
             est.alip_stance = -1
             return
