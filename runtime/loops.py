@@ -125,6 +125,7 @@ class LiveRunner:
         )
         self.ctx = _Context(self)
         self.inbox = PortInbox(self.ports)
+        self._arrived = threading.Event()  # receive thread -> loop: the trigger is fresh
         self._fds = [self.bus.fileno()] + [
             p.fileno() for p in self.ports.values() if isinstance(p, UdpReceiver)
         ]
@@ -184,12 +185,20 @@ class LiveRunner:
             gc.freeze()
             gc.disable()
         end_ns = time.monotonic_ns() + int(duration_s * 1e9) if duration_s else None
+        receiver = None
+        if self.node.receive_thread and self.node.trigger_role is not None:
+            receiver = threading.Thread(target=self._receive_loop, name=f"{self.proc.name}-rx",
+                                        daemon=True)
+            receiver.start()
         try:
             if self.node.trigger_role is None:
                 self._run_periodic(end_ns)
             else:
                 self._run_message(end_ns)
         finally:
+            self.stop_event.set()
+            if receiver is not None:
+                receiver.join(1.0)
             self.node.close()
             for s in self._udp_out.values():
                 s.close()
@@ -247,6 +256,15 @@ class LiveRunner:
             if end_ns is not None and end >= end_ns:
                 break
 
+    def _receive_loop(self) -> None:
+        """The receive thread: take every arriving message into its port buffer while the
+        loop's thread ticks, and wake the loop when its trigger input has something new."""
+        trigger = self.ports[str(self.node.trigger_role)]
+        while not self.stop_event.is_set():
+            self._poll(0.05)
+            if trigger.fresh:
+                self._arrived.set()
+
     def _run_message(self, end_ns: int | None) -> None:
         role = self.node.trigger_role
         assert role is not None
@@ -255,8 +273,13 @@ class LiveRunner:
         timeout_s = getattr(self.node, "trigger_timeout_s", None)
         last_trigger_ns = time.monotonic_ns()
         poll_s = 0.05 if timeout_s is None else min(0.05, timeout_s)
+        threaded = self.node.receive_thread
         while not self.stop_event.is_set():
-            self._poll(poll_s)
+            if threaded:  # the receive thread polls; wait for it to say the trigger is fresh
+                self._arrived.wait(poll_s)
+                self._arrived.clear()
+            else:
+                self._poll(poll_s)
             now = time.monotonic_ns()
             if port.fresh:
                 if self.node.trigger_policy == "each":

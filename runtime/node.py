@@ -63,6 +63,10 @@ class Node:
     #: with "each": the most messages kept waiting when the loop falls behind its input; older
     #: ones are dropped and counted as stale, so latency stays bounded (None: keep them all)
     max_backlog: int | None = None
+    #: live only: a receive thread keeps taking messages into the port buffers while ``tick``
+    #: runs (as a camera's polling thread fills a shared frame buffer for the mapping thread);
+    #: the harness ignores it (everything there is in sim-time order)
+    receive_thread: bool = False
     #: set by the runner from ``hw_config`` (rate_hz, deadline_ms) before ``setup``
     period_s: float | None = None
     deadline_s: float | None = None

@@ -7,6 +7,7 @@ that only wants the newest message never pays for decoding the ones it skips.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections import deque
 from collections.abc import Mapping
@@ -16,7 +17,12 @@ Policy = Literal["newest", "each"]
 
 
 class PortBuffer:
-    """Newest-slot (``newest``) or bounded FIFO (``each``) of raw payloads."""
+    """Newest-slot (``newest``) or bounded FIFO (``each``) of raw payloads.
+
+    Filing (``put``) and taking (``latest``, ``pop``, ``trim``) may run on different threads
+    (a loop with a receive thread): both touch the slot under one short lock, and decoding
+    happens outside it, so a slow decode never holds up the receiver.
+    """
 
     def __init__(self, policy: Policy, capacity: int) -> None:
         self.policy = policy
@@ -29,18 +35,20 @@ class PortBuffer:
         self.decode_errors = 0
         self.overflowed = 0
         self.last_receive_ns = 0
+        self._lock = threading.Lock()
 
     def put(self, data: bytes) -> None:
         """File one arrived payload (the receive path: no decoding here)."""
-        if self.policy == "each":
-            if len(self._queue) == self._queue.maxlen:
-                self.overflowed += 1
-            self._queue.append(data)
-        else:
-            if self.fresh:
-                self.stale_skipped += 1
-            self._raw = data
-        self.fresh = True
+        with self._lock:
+            if self.policy == "each":
+                if len(self._queue) == self._queue.maxlen:
+                    self.overflowed += 1
+                self._queue.append(data)
+            else:
+                if self.fresh:
+                    self.stale_skipped += 1
+                self._raw = data
+            self.fresh = True
 
     def _decode(self, data: bytes) -> Any | None:
         """Payload -> message, or None when it is malformed (subclasses count why)."""
@@ -48,39 +56,44 @@ class PortBuffer:
 
     def latest(self) -> Any | None:
         """The newest message, decoded and marked consumed (the previous good one if corrupt)."""
-        if self.policy == "each":
-            while self._queue:
-                msg = self._decode(self._queue.popleft())
-                if msg is not None:
-                    self._decoded = msg
-        elif self._raw is not None:
-            raw, self._raw = self._raw, None
+        with self._lock:
+            if self.policy == "each":
+                raws = list(self._queue)
+                self._queue.clear()
+            else:
+                raws = [] if self._raw is None else [self._raw]
+                self._raw = None
+            self.fresh = False
+        for raw in raws:
             msg = self._decode(raw)
             if msg is not None:
                 self._decoded = msg
-        self.fresh = False
         return self._decoded
 
     def pop(self) -> Any | None:
         """Next message in arrival order (``each`` policy); None when the queue is empty."""
-        while self._queue:
-            msg = self._decode(self._queue.popleft())
+        while True:
+            with self._lock:
+                if not self._queue:
+                    self.fresh = False
+                    return None
+                raw = self._queue.popleft()
+                self.fresh = bool(self._queue)
+            msg = self._decode(raw)
             if msg is not None:
                 self._decoded = msg
-                self.fresh = bool(self._queue)
                 return msg
-        self.fresh = False
-        return None
 
     def pending(self) -> int:
         return len(self._queue) if self.policy == "each" else int(self._raw is not None)
 
     def trim(self, keep: int) -> int:
         """Drop all but the newest ``keep`` queued payloads (counted as stale); returns how many."""
-        drop = max(len(self._queue) - keep, 0)
-        for _ in range(drop):
-            self._queue.popleft()
-        self.stale_skipped += drop
+        with self._lock:
+            drop = max(len(self._queue) - keep, 0)
+            for _ in range(drop):
+                self._queue.popleft()
+            self.stale_skipped += drop
         return drop
 
     def peek(self) -> Any | None:

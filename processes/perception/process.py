@@ -1,8 +1,10 @@
 """The perception process: depth frames -> robot-centric elevation map (Section VII-A/B).
 
-Driven by the newest depth frame (a frame that arrives while the map is updating waits in the
-subscription's newest-slot and stale ones are skipped, as the RealSense polling thread's shared
-buffer does on the robot). For each frame: the camera pose comes from the *estimated* pelvis
+Two threads, as on the robot: a receive thread (``Node.receive_thread``, the RealSense polling
+thread's part) keeps taking depth frames, states and contacts into the port buffers, the
+newest frame in a one-slot shared buffer, while the mapping thread (``tick``) updates the map
+from the newest frame; frames that arrive during an update replace each other there and are
+counted as skipped. For each frame: the camera pose comes from the *estimated* pelvis
 pose (the laptop's robot state nearest in time) and the camera mount, or from the frame itself
 (``camera_pose: frame``, the simulator's true pose); the robot's own legs are cropped with boxes
 around the leg links; the stance foot corrects the map's height drift (Section VII-B); the map
@@ -58,6 +60,7 @@ class PerceptionNode(Node):
     inputs = {"depth": depth_frame_t, "state": robot_state_t, "contact": contact_t}
     outputs = {"elevation_map": elevation_map_t}
     trigger_role = "depth"
+    receive_thread = True  # frames keep arriving while the map updates (see the docstring)
 
     def __init__(
         self,
