@@ -22,6 +22,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -179,8 +180,10 @@ def run_trial(
     perception: bool,
     vx: float,
     base_profile: Path,
+    setup: Callable[[Harness], None] | None = None,
 ) -> Trial:
-    """One trial: build the experiment profile's nodes, run, judge."""
+    """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
+    (or instrument) the harness's nodes before the run."""
     from sim import terrain as terrain_mod
 
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
@@ -202,6 +205,8 @@ def run_trial(
         walk_start_s = 0.0
         judge = Judge(list(ter.footholds), walk_start_s)
         h.tap(gt_channel, judge)
+        if setup is not None:
+            setup(h)
         t0 = time.perf_counter()
         h.run_until(int(duration_s * 1e6), stop=lambda: judge.fall_t is not None)
         trial.wall_s = time.perf_counter() - t0

@@ -68,6 +68,9 @@ class MpfcSolver:
         self.last_inputs: SolveInputs | None = None  # for tests and debugging
         self.last_local: LocalFootholds | None = None
         self._prev_p_stance = np.zeros(3)
+        #: when a list, every solve's arguments are appended to it as an ``Instance`` (to
+        #: benchmark on the instances of a closed-loop run)
+        self.recorder: list | None = None
 
     def reset(self) -> None:
         """Forget the previous solution (no incumbent, no trust region)."""
@@ -93,6 +96,12 @@ class MpfcSolver:
         """Solve (15) for the current state; see the module docstring for frames and timing."""
         t_start = time.perf_counter()
         p = self.params
+        if self.recorder is not None:
+            from processes.mpfc.instances import Instance
+
+            self.recorder.append(Instance(
+                np.array(x_alip, dtype=float), stance, np.array(p_stance, dtype=float),
+                float(t_remaining_s), np.array(vdes, dtype=float), footholds, float(yaw)))
         if stance not in STANCES:
             raise ValueError(f"stance must be 'left' or 'right', got {stance!r}")
         x_c = np.asarray(x_alip, dtype=float).reshape(4)

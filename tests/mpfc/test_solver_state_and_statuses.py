@@ -138,3 +138,28 @@ def test_qp_that_never_solves_is_not_called_infeasible(params, monkeypatch) -> N
     rng = np.random.default_rng(4)
     sol = solve(solver, random_instance(rng, solver.model, 4))
     assert sol.status == "time_limited"
+
+
+def test_recorded_solves_replay_to_the_same_plans(params) -> None:
+    """``MpfcSolver.recorder`` keeps every solve's arguments (the closed-loop benchmark's
+    instances); a fresh solver fed them in order makes the same plans."""
+    rng = np.random.default_rng(5)
+    live = MpfcSolver(params)
+    live.recorder = []
+    plans = []
+    for _ in range(3):
+        inst = random_instance(rng, live.model, 8)
+        x, t = inst.x_alip.copy(), inst.t_remaining_s
+        for _ in range(3):  # warm solves later in the same stance, as the process makes them
+            sol = live.solve(x, inst.stance, inst.p_stance, t, inst.vdes, inst.footholds,
+                             inst.yaw)
+            plans.append(sol.footsteps)
+            x, t = live.model.expm_a(0.03) @ x, t - 0.03
+    assert len(live.recorder) == 9
+    fresh = MpfcSolver(params)
+    for inst, plan in zip(live.recorder, plans, strict=True):
+        sol = fresh.solve(inst.x_alip, inst.stance, inst.p_stance, inst.t_remaining_s,
+                          inst.vdes, inst.footholds, inst.yaw)
+        assert (sol.footsteps is None) == (plan is None)
+        if plan is not None:
+            assert np.allclose(sol.footsteps, plan, atol=1e-9)

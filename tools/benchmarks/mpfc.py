@@ -1,4 +1,5 @@
-"""`cassie bench mpfc`: MPFC solve times (Section VIII-C, Table II) on generated instances.
+"""`cassie bench mpfc`: MPFC solve times (Section VIII-C, Table II) on generated instances,
+or (``--closed-loop TERRAIN``) on the solves recorded from closed-loop walking runs.
 
 Instances come in short episodes, as on the robot: a cold solve (new footholds, no previous
 plan), then warm solves later in the same stance (state propagated along the ALIP, T*
@@ -23,7 +24,7 @@ import numpy as np
 
 from processes.mpfc import MpfcParams, MpfcSolver
 from processes.mpfc.gurobi_backend import GurobiBackend, gurobi_available
-from processes.mpfc.instances import random_instance
+from processes.mpfc.instances import Instance, random_instance
 from processes.mpfc.problem import build_miqp
 from tools.benchmarks.common import machine_description, print_table, summarize, write_json
 
@@ -146,6 +147,100 @@ def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_eve
     return figs
 
 
+def record_closed_loop(terrain: str, seeds: int, seconds: float
+                       ) -> tuple[MpfcParams, list[list[Instance]]]:
+    """The solve arguments of the MPFC node in closed-loop harness runs of ``cassie
+    experiment TERRAIN`` (ground-truth footholds), one episode per seed, in solve order
+    (a trial that falls ends its episode). Returns the node's parameters and the episodes."""
+    from runtime.config import HW_CONFIG_DIR
+    from tools.experiment import run_trial
+
+    params: list[MpfcParams] = []
+    episodes: list[list[Instance]] = []
+    for seed in range(seeds):
+        rec: list[Instance] = []
+
+        def attach(h: object, rec: list[Instance] = rec) -> None:
+            for b in h.bindings:  # type: ignore[attr-defined]
+                solver = getattr(b.node, "solver", None)
+                if isinstance(solver, MpfcSolver):
+                    solver.recorder = rec
+                    params.append(solver.params)
+
+        trial = run_trial(terrain, seconds, seed, None, False, 0.375,
+                          HW_CONFIG_DIR / "experiment.yaml", setup=attach)
+        print(f"  recorded {len(rec)} solves: {terrain} seed {seed}, "
+              f"{trial.duration_s:.1f} s walked{' (fell)' if trial.fell else ''}",
+              file=sys.stderr, flush=True)
+        episodes.append(rec)
+    if not params:
+        raise SystemExit("the experiment profile has no MPFC node: nothing to record")
+    return params[0], episodes
+
+
+def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool = False
+           ) -> dict[str, object]:
+    """Time a fresh solver on each recorded episode in order (warm starts as live); with
+    ``use_gurobi``, Gurobi on the literal MIQP of every same problem afterwards."""
+    wall, nodes, counts = [], [], []
+    statuses: dict[str, int] = {}
+    problems = []
+    gc.collect()
+    gc.disable()
+    try:
+        for ep in episodes:
+            solver = MpfcSolver(params)
+            for inst in ep:
+                sol = solver.solve(inst.x_alip, inst.stance, inst.p_stance, inst.t_remaining_s,
+                                   inst.vdes, inst.footholds, inst.yaw)
+                wall.append(sol.solve_wall_ms)
+                nodes.append(sol.nodes_explored)
+                counts.append(sol.footholds_considered)
+                statuses[sol.status] = statuses.get(sol.status, 0) + 1
+                if use_gurobi:
+                    problems.append((solver.model, solver.last_inputs, solver.last_local,
+                                     sol.status, sol.objective))
+    finally:
+        gc.enable()
+    w = np.asarray(wall)
+    figs: dict[str, object] = {"closed_loop_solves": int(w.size)}
+    if problems:
+        backend = GurobiBackend()
+        g_run, ours_higher, gurobi_higher, max_rel, status_diff = [], 0, 0, 0.0, 0
+        for model, inp, lf, status, objective in problems:
+            g = backend.solve(build_miqp(model, inp, lf))
+            g_run.append(g.runtime_ms)
+            if status == "optimal" and g.status == "optimal":
+                rel = (objective - g.objective) / max(abs(g.objective), 1.0)
+                max_rel = max(max_rel, abs(rel))
+                ours_higher += rel > 1e-6  # Gurobi found a better point: our search missed it
+                gurobi_higher += rel < -1e-6  # ours is better: Gurobi stopped short
+            elif (status == "infeasible") != (g.status == "infeasible"):
+                status_diff += 1
+        gr = np.asarray(g_run)
+        figs.update(summarize(gr, "closed_loop_gurobi_runtime"))
+        figs["closed_loop_gurobi_objective_ours_higher_count"] = ours_higher
+        figs["closed_loop_gurobi_objective_gurobi_higher_count"] = gurobi_higher
+        figs["closed_loop_gurobi_objective_max_rel_diff"] = max_rel
+        figs["closed_loop_gurobi_status_disagreements"] = status_diff
+        figs["closed_loop_gurobi_over_ours_median_ratio"] = float(np.median(gr) / np.median(w))
+        figs["closed_loop_gurobi_over_ours_p999_ratio"] = float(
+            np.percentile(gr, 99.9) / np.percentile(w, 99.9))
+    figs.update(summarize(w, "closed_loop_solve"))
+    cnt = np.asarray(counts)
+    figs.update({
+        "closed_loop_nodes_mean": float(np.mean(nodes)),
+        "closed_loop_nodes_max": int(np.max(nodes)),
+        "closed_loop_footholds_min": int(cnt.min()),
+        "closed_loop_footholds_max": int(cnt.max()),
+        "closed_loop_footholds_mean": float(cnt.mean()),
+        "closed_loop_over_7p7ms_ratio": float(np.mean(w > TARGET_P999_MS)),
+    })
+    for st in ("optimal", "time_limited", "infeasible"):
+        figs[f"closed_loop_status_{st}_count"] = statuses.get(st, 0)
+    return figs
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of `cassie bench mpfc`."""
     ap = argparse.ArgumentParser(prog="cassie bench mpfc", description=__doc__.splitlines()[0])
@@ -157,7 +252,29 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-gurobi", action="store_true", help="skip Gurobi even if installed")
     ap.add_argument("--gurobi-every", type=int, default=1,
                     help="compare Gurobi on every k-th solve (1: all)")
+    ap.add_argument("--closed-loop", metavar="TERRAIN", default=None,
+                    help="instead: record the MPFC's solves in closed-loop harness runs of "
+                         "cassie experiment TERRAIN (e.g. stones) and time them")
+    ap.add_argument("--seeds", type=int, default=4, help="--closed-loop: runs (terrain seeds)")
+    ap.add_argument("--seconds", type=float, default=6.0, help="--closed-loop: sim s per run")
     args = ap.parse_args(argv)
+    if args.closed_loop:
+        t0 = time.perf_counter()
+        cl_params, episodes = record_closed_loop(args.closed_loop, args.seeds, args.seconds)
+        load_start = os.getloadavg()[0]
+        use_gurobi = not args.no_gurobi and gurobi_available()
+        figs = replay(cl_params, episodes, use_gurobi)
+        figs["gurobi_installed"] = use_gurobi
+        figs.update({"terrain": args.closed_loop, "episodes": len(episodes),
+                     "bench_wall_s": time.perf_counter() - t0,
+                     "load_average_1min_start": load_start,
+                     "load_average_1min_end": os.getloadavg()[0],
+                     "target_median_ms": TARGET_MEDIAN_MS, "target_p999_ms": TARGET_P999_MS})
+        print(f"machine: {machine_description()}")
+        print_table(f"MPFC on closed-loop instances ({args.closed_loop}, {len(episodes)} runs)",
+                    list(figs.items()))
+        write_json(args.json, "mpfc_closed_loop", figs)
+        return 0
     params = MpfcParams.from_yaml(args.config, args.variant)
     use_gurobi = not args.no_gurobi and gurobi_available()
     if not args.no_gurobi and not use_gurobi:
