@@ -209,7 +209,8 @@ PARAMS = {
     "terrain": "a terrain YAML file (relative to hw_config) or a generator name",
     "terrain_seed": "seed for a random terrain (stones, blocks)",
     "drive": "auto | periodic | command",
-    "camera_render": "auto | process | thread | inline (overrides camera.render)",
+    "camera_render": "auto | process | thread | inline (overrides camera.render) | off (no "
+                     "depth camera: nothing renders or publishes DEPTH)",
     "publish_footholds": "also publish the terrain's ground-truth footholds (output role "
                          "'footholds', foothold_set_t) at 30 Hz of sim time",
 }
@@ -457,10 +458,15 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     if drive not in ("auto", "periodic", "command"):
         raise ConfigError(file, proc.key("params", "drive"), f"unknown value {drive!r}",
                           allowed="auto, periodic, command")
-    if "camera_render" in proc.params:
-        render = _render_mode(file, proc.key("params", "camera_render"),
-                              proc.params["camera_render"])
-        settings = replace(settings, camera_render=render)
+    v = proc.params.get("camera_render")
+    if v == "off" or v is False:  # (YAML reads a bare off as false) no depth camera: nothing
+        # renders or publishes DEPTH -- for profiles without perception
+        settings = replace(settings, camera_enabled=False)
+    elif v is not None:
+        if v not in RENDER_MODES:
+            raise ConfigError(file, proc.key("params", "camera_render"), f"unknown value {v!r}",
+                              allowed=", ".join((*RENDER_MODES, "off")))
+        settings = replace(settings, camera_render=v)
     fh = _bool(file, proc.key("params", "publish_footholds"),
                proc.params.get("publish_footholds", False))
     rate = proc.rate_hz if proc.rate_hz else 2000.0

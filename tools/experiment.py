@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from lcmtypes import command_t, ground_truth_t, robot_state_t
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
@@ -160,15 +161,18 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
     launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
     if perception:
         launch += [p for p in ("perception", "s3") if p not in launch]
+    sim_params: dict[str, Any] = {"terrain": terrain, "publish_footholds": not perception}
+    # depth frames only feed perception; with it, rendered inline in the harness (sim-time
+    # order, deterministic), as configured otherwise
+    sim_params["camera_render"] = "off" if not perception else ("auto" if mode else "inline")
+    doc: dict[str, Any] = {"include": [str(base_profile)], "profile": f"experiment_{name}"}
+    if mode:
+        doc["mode"] = mode
+    doc["launch"] = launch
+    doc["overrides"] = {"sim": {"params": sim_params},
+                        "mpfc": {"params": {"footholds": "channel"}}}
     prof_path = work / "experiment.yaml"
-    prof_path.write_text(
-        f"include: [{base_profile}]\nprofile: experiment_{name}\n"
-        + (f"mode: {mode}\n" if mode else "")
-        + f"launch: [{', '.join(launch)}]\n"
-        f"overrides: {{sim: {{params: {{terrain: '{terrain}', "
-        f"publish_footholds: {str(not perception).lower()}}}}}, "
-        f"mpfc: {{params: {{footholds: channel}}}}}}\n"
-    )
+    prof_path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return prof_path, launch
 
 

@@ -45,3 +45,26 @@ def test_make_node_is_periodic_in_realtime_and_command_driven_in_lockstep(driver
     assert ls.settings.terrain.seed == 2
     assert set(rt.outputs) == {"robot_output", "ground_truth", "depth"}
     assert rt.inputs == {"command": bytes}
+
+
+def test_camera_render_off_means_no_depth_camera_and_a_bad_value_lists_it():
+    """Profiles without perception switch the depth camera off (its renderer costs ~15 % of
+    a core); YAML's bare ``off`` (read as false) means the same."""
+    import pytest
+
+    from runtime.errors import ConfigError
+    from sim.process import make_node
+
+    from .conftest import make_proc, make_profile
+
+    for value in ("off", False):
+        node = make_node(make_proc({"terrain": "flat", "camera_render": value}),
+                         make_profile("lockstep"))
+        try:
+            assert node.render_mode == "off"
+            assert "depth" not in node.status()
+        finally:
+            node.close()
+    with pytest.raises(ConfigError, match=r"camera_render.*off"):
+        make_node(make_proc({"terrain": "flat", "camera_render": "never"}),
+                  make_profile("lockstep"))
