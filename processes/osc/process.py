@@ -1,7 +1,8 @@
 """The OSC process shell: a ``Node`` that feeds robot states to ``OscController``.
 
 Driven by each newest ``state`` (robot_state_t, CASSIE_STATE); reads the newest ``plan``
-(mpfc_output_t) and ``command`` (command_t); publishes ``torque`` (torque_command_t, joint-side
+(mpfc_output_t) and ``command`` (command_t; until the first one arrives, ``params.start``:
+``walk``, the default, or ``stand``); publishes ``torque`` (torque_command_t, joint-side
 N m in actuator order) and ``debug`` (osc_debug_t), both stamped with the state's utime.
 """
 
@@ -20,7 +21,8 @@ from .controller import SAFE, OscController
 from .model import CassieModel
 from .tasks import DEFAULT_GAINS_FILE, OscParams
 
-_KNOWN_PARAMS = ("gains_file",)
+_KNOWN_PARAMS = ("gains_file", "start")
+START_MODES = ("walk", "stand")
 
 
 class OscNode(Node):
@@ -32,8 +34,14 @@ class OscNode(Node):
     trigger_role = "state"
     trigger_policy = "newest"
 
-    def __init__(self, params: OscParams) -> None:
+    def __init__(self, params: OscParams, start: str = "walk") -> None:
         self.params = params
+        #: until the radio's first command: walk (mode 0, no turning: the stack walks at the
+        #: MPFC's default velocity out of the holder) or stand (wait for the radio)
+        self._default_command: command_t | None = None
+        if start == "walk":
+            self._default_command = command_t()
+            self._default_command.mode = 0
         self.controller: OscController | None = None
         self._torque = torque_command_t()
         self._debug = osc_debug_t()
@@ -60,7 +68,8 @@ class OscNode(Node):
             q = np.full(self._nq, np.nan)
             v = np.zeros(self._nv)
         t = float(state.header.utime) * 1e-6
-        u, dbg = ctrl.update(t, q, v, inbox.latest("plan"), inbox.latest("command"))
+        command = inbox.latest("command") or self._default_command
+        u, dbg = ctrl.update(t, q, v, inbox.latest("plan"), command)
         if not np.all(np.isfinite(u)):  # defence in depth: never publish a NaN torque
             u = np.zeros_like(u)
         cmd = self._torque
@@ -100,6 +109,10 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
         if key not in _KNOWN_PARAMS:
             raise ConfigError(str(proc.source_file), proc.key("params", key), "unknown parameter",
                               ", ".join(_KNOWN_PARAMS))
+    start = proc.params.get("start", "walk")
+    if start not in START_MODES:
+        raise ConfigError(str(proc.source_file), proc.key("params", "start"),
+                          f"unknown value {start!r}", ", ".join(START_MODES))
     path = proc.gains_file
     if path is None and "gains_file" in proc.params:
         raw = proc.params["gains_file"]
@@ -110,4 +123,4 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     if path is None:
         candidate = profile.resolve("gains/osc.yaml")
         path = candidate if candidate.exists() else DEFAULT_GAINS_FILE
-    return OscNode(OscParams.from_yaml(path))
+    return OscNode(OscParams.from_yaml(path), start)

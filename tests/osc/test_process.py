@@ -97,3 +97,46 @@ def test_unknown_process_parameter_is_a_config_error():
     with pytest.raises(ConfigError) as e:
         make_node(_proc(kp=3), _profile())
     assert e.value.key == "processes.osc.params.kp"
+
+
+class _PlanInbox(_Inbox):
+    """A state and a double-stance MPFC plan; no radio command has arrived."""
+
+    def __init__(self, state: robot_state_t, plan: object) -> None:
+        super().__init__(state)
+        self.plan = plan
+
+    def latest(self, role: str):
+        return {"state": self.state, "plan": self.plan}.get(role)
+
+
+def _ds_plan(node, utime: int):  # type: ignore[no-untyped-def]
+    from lcmtypes import mpfc_output_t
+
+    m = node.controller.model
+    p = mpfc_output_t()
+    p.header.utime = utime
+    p.gait_state, p.stance = 2, 0  # double stance after a left touchdown
+    p.stance_foot_world = m.foot_center(0).tolist()
+    p.next_footstep_world = m.foot_center(1).tolist()
+    p.prev_switch_time_s, p.next_switch_time_s = utime * 1e-6, utime * 1e-6 + 0.1
+    return p
+
+
+@pytest.mark.parametrize(("start", "walks"), [("walk", True), ("stand", False)])
+def test_before_the_first_command_the_osc_walks_or_stands_as_configured(q_stand, start, walks):
+    """The stack walks out of the holder at MPFC's default velocity unless ``start: stand``
+    makes the OSC wait for the radio."""
+    from processes.osc.controller import STANDING, WALKING
+
+    node = make_node(_proc(start=start), _profile())
+    ctx = _Ctx()
+    node.setup(ctx)
+    node.tick(ctx, _Inbox(_state(q_stand, 1000)))  # standing, and the model is updated
+    node.tick(ctx, _PlanInbox(_state(q_stand, 1500), _ds_plan(node, 1500)))
+    assert node.controller.mode == (WALKING if walks else STANDING)
+
+
+def test_a_bad_start_value_names_the_key():
+    with pytest.raises(ConfigError, match="start"):
+        make_node(_proc(start="run"), _profile())
