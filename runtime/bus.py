@@ -89,6 +89,12 @@ class Subscription(PortBuffer):
             return None
 
 
+#: socket receive buffer of every bus (bytes): a loop busy in its tick must not lose the newest
+#: message of a burst, nor fragments of a depth frame (~0.8 MB), to a full kernel buffer (the
+#: Linux default is ~200 KB; the kernel caps the request at net.core.rmem_max)
+DEFAULT_RECV_BUF = 2 << 20
+
+
 class Bus:
     """LCM with per-channel ttl, newest-message subscriptions and header stamping."""
 
@@ -96,7 +102,7 @@ class Bus:
         self,
         url: str = DEFAULT_URL,
         source: str = "",
-        recv_buf_size: int | None = None,
+        recv_buf_size: int | None = DEFAULT_RECV_BUF,
     ) -> None:
         self.url = url
         self.source = source
