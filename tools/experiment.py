@@ -33,9 +33,11 @@ import yaml
 from lcmtypes import command_t, ground_truth_t, robot_state_t
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
 from runtime.config import HW_CONFIG_DIR, load_profile
+from runtime.config_types import Profile
 from runtime.harness import Binding, Harness
 from runtime.node import Node
 from tools.benchmarks.common import print_table, write_json
+from tools.report import analyse, load_budgets, print_loops
 
 EXPERIMENTS = ("flat", "stairs", "beam", "stones")
 FALL_HEIGHT_M = 0.6
@@ -63,7 +65,7 @@ class Trial:
     success: bool = False
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
-    timing: dict[str, dict[str, float]] = field(default_factory=dict)  # live runs: per loop
+    timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops
     notes: list[str] = field(default_factory=list)
 
 
@@ -176,6 +178,18 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
     return prof_path, launch
 
 
+def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
+             work: Path, mode: str | None = None) -> tuple[Path, Profile, list[str], list[Any]]:
+    """The trial's terrain and profile in ``work``: (profile path, profile, launched
+    processes, the terrain's ground-truth footholds for the judge)."""
+    from sim import terrain as terrain_mod
+
+    terrain = _terrain_file(name, dmin, seed, work)
+    prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
+    footholds = list(terrain_mod.load_terrain(terrain).footholds)
+    return prof_path, load_profile(prof_path), launch, footholds
+
+
 def run_trial(
     name: str,
     duration_s: float,
@@ -188,15 +202,11 @@ def run_trial(
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
     (or instrument) the harness's nodes before the run."""
-    from sim import terrain as terrain_mod
-
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        terrain = _terrain_file(name, dmin, seed, work)
-        prof_path, launch = _write_profile(base_profile, name, terrain, perception, work)
-        profile = load_profile(prof_path)
-        ter = terrain_mod.load_terrain(terrain)
+        _, profile, launch, footholds = _prepare(base_profile, name, dmin, seed, perception,
+                                                 work)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
@@ -206,8 +216,7 @@ def run_trial(
                 outputs={"command": profile.channels["command"].name},
             )
         )
-        walk_start_s = 0.0
-        judge = Judge(list(ter.footholds), walk_start_s)
+        judge = Judge(footholds, walk_start_s=0.0)
         h.tap(gt_channel, judge)
         if setup is not None:
             setup(h)
@@ -233,21 +242,17 @@ def run_live_trial(
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
     is the operator's radio and the judge, on the bus. Timing comes from the log afterwards."""
     from runtime.bus import Bus
-    from sim import terrain as terrain_mod
-    from tools.report import analyse, load_budgets
 
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx, mode=mode)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         logs = log_dir if log_dir is not None else work / "logs"
         logs.mkdir(parents=True, exist_ok=True)
-        terrain = _terrain_file(name, dmin, seed, work)
-        prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
-        profile = load_profile(prof_path)
-        ter = terrain_mod.load_terrain(terrain)
+        prof_path, profile, launch, footholds = _prepare(base_profile, name, dmin, seed,
+                                                         perception, work, mode)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
-        judge = Judge(list(ter.footholds), math.inf)
+        judge = Judge(footholds, math.inf)
         operator = Operator(vx)
         bus = Bus(profile.lcm_url, source="operator")
         newest: list[Any] = [None]
@@ -314,12 +319,7 @@ def run_live_trial(
         log_file = logs / "lcm.log"
         if log_file.exists():
             rep = analyse(log_file, load_budgets(HW_CONFIG_DIR / "budgets.yaml"))
-            trial.timing = {
-                key: {k: row[k] for k in ("ticks", "deadline_ms", "deadline_misses", "miss_ratio",
-                                          "exec_p50_ms", "exec_p99_ms", "exec_max_ms",
-                                          "stale_skipped") if k in row}
-                for key, row in rep["loops"].items()
-            }
+            trial.timing = rep["loops"]
         else:
             trial.notes.append("no LCM log was recorded: no timing summary")
     _verdict(trial, judge, launch)
@@ -352,18 +352,6 @@ def _verdict(trial: Trial, judge: Judge, launch: list[str]) -> Trial:
     if "osc" not in launch:
         trial.notes.append("no walking controller in the experiment profile")
     return trial
-
-
-def print_timing(timing: dict[str, dict[str, float]]) -> None:
-    """The live run's loops: ticks, deadline misses and tick times (from the LCM log)."""
-    print("\n  loop timing (from the LCM log)")
-    print(f"  {'loop':34s} {'ticks':>8s} {'deadline':>9s} {'misses':>8s} {'miss %':>7s} "
-          f"{'exec med':>9s} {'p99':>7s} {'max':>7s}")
-    for key, r in timing.items():
-        print(f"  {key:34s} {int(r.get('ticks', 0)):8d} {r.get('deadline_ms', 0):7.2f}ms "
-              f"{int(r.get('deadline_misses', 0)):8d} {100 * r.get('miss_ratio', 0):6.2f}% "
-              f"{r.get('exec_p50_ms', 0):7.3f}ms {r.get('exec_p99_ms', 0):5.2f}ms "
-              f"{r.get('exec_max_ms', 0):5.2f}ms")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -413,8 +401,8 @@ def main(argv: list[str] | None = None) -> int:
     for tr in trials:
         rows = {k: v for k, v in asdict(tr).items() if k not in ("notes", "timing")}
         print_table(f"experiment {tr.experiment}, seed {tr.seed}", rows)
-        if tr.timing:
-            print_timing(tr.timing)
+        if tr.timing:  # the live run's loops, as `cassie report` prints them from its log
+            print_loops(tr.timing)
         for note in tr.notes:
             print(f"  note: {note}")
     ok = sum(t.success for t in trials)

@@ -190,6 +190,23 @@ def _pcts(a: np.ndarray, prefix: str) -> dict[str, float]:
     }
 
 
+def print_loops(loops: dict[str, Any], out: Any = sys.stdout) -> None:
+    """The loops table of the report: execution time, lateness and deadline misses."""
+    w = out.write
+    w("\nLoops (execution time; lateness; misses against the loop's deadline)\n-----\n")
+    w(
+        f"{'loop':<28}{'Hz':>8}{'p50':>8}{'p99':>8}{'p99.9':>8}{'max':>8}{'late p99':>9}"
+        f"{'misses':>9}{'miss %':>8}  budget\n"
+    )
+    for name, r in loops.items():
+        verdict = ("ok" if r["within_budget"] else "OVER") if r["budget"] else ""
+        w(
+            f"{name:<28}{r['rate_hz']:>8.1f}{r['exec_p50_ms']:>8.3f}{r['exec_p99_ms']:>8.3f}"
+            f"{r['exec_p999_ms']:>8.3f}{r['exec_max_ms']:>8.2f}{r['lateness_p99_ms']:>9.3f}"
+            f"{r['deadline_misses']:>9}{100 * r['miss_ratio']:>8.3f}  {r['budget']} {verdict}\n"
+        )
+
+
 def print_report(rep: dict[str, Any], out: Any = sys.stdout) -> None:
     w = out.write
     w("\nChannels\n--------\n")
@@ -199,18 +216,7 @@ def print_report(rep: dict[str, Any], out: Any = sys.stdout) -> None:
             f"{ch:<24}{r['count']:>9}{r['rate_hz']:>10.1f}{r['gap_median_ms']:>12.3f}"
             f"{r['gap_max_ms']:>12.2f}{r['undecodable']:>6}\n"
         )
-    w("\nLoops (execution time; lateness; misses against the loop's deadline)\n-----\n")
-    w(
-        f"{'loop':<28}{'Hz':>8}{'p50':>8}{'p99':>8}{'p99.9':>8}{'max':>8}{'late p99':>9}"
-        f"{'misses':>9}{'miss %':>8}  budget\n"
-    )
-    for name, r in rep["loops"].items():
-        verdict = ("ok" if r["within_budget"] else "OVER") if r["budget"] else ""
-        w(
-            f"{name:<28}{r['rate_hz']:>8.1f}{r['exec_p50_ms']:>8.3f}{r['exec_p99_ms']:>8.3f}"
-            f"{r['exec_p999_ms']:>8.3f}{r['exec_max_ms']:>8.2f}{r['lateness_p99_ms']:>9.3f}"
-            f"{r['deadline_misses']:>9}{100 * r['miss_ratio']:>8.3f}  {r['budget']} {verdict}\n"
-        )
+    print_loops(rep["loops"], out)
     w("\nHops (latency, ms, matched by header.utime)\n----\n")
     w(f"{'hop':<34}{'n':>7}{'p50':>8}{'p99':>8}{'p99.9':>8}{'max':>8}  budget p99\n")
     for name, r in rep["hops"].items():
