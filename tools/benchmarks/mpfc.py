@@ -19,13 +19,14 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from processes.mpfc import MpfcParams, MpfcSolver
 from processes.mpfc.gurobi_backend import GurobiBackend, gurobi_available
 from processes.mpfc.instances import Instance, random_instance
-from processes.mpfc.problem import build_miqp
+from processes.mpfc.problem import MpfcModel, build_miqp
 from tools.benchmarks.common import machine_description, print_table, summarize, write_json
 
 REPO = Path(__file__).resolve().parents[2]
@@ -34,6 +35,52 @@ TARGET_MEDIAN_MS = 2.0
 TARGET_P999_MS = 7.7
 WARM_PER_EPISODE = 3
 WARM_DT_S = 0.03
+
+
+def compare_gurobi(backend: GurobiBackend, model: MpfcModel, problems: list[tuple[Any, ...]],
+                   prefix: str) -> dict[str, object]:
+    """Gurobi on the literal MIQP of each (inputs, footholds, our status, our objective, our
+    solve ms) problem: its times, the ratio to ours, and how the objectives compare (ours
+    higher: Gurobi found a better point; Gurobi higher: it stopped short)."""
+    g_run, g_wall, g_nodes = [], [], []
+    compared = ours_higher = gurobi_higher = status_diff = 0
+    max_rel = 0.0
+    for done, (inp, lf, status, objective, _) in enumerate(problems, 1):
+        g = backend.solve(build_miqp(model, inp, lf))
+        g_run.append(g.runtime_ms)
+        g_wall.append(g.wall_ms)
+        g_nodes.append(g.nodes)
+        if status == "optimal" and g.status == "optimal":
+            compared += 1
+            rel = (objective - g.objective) / max(abs(g.objective), 1.0)
+            max_rel = max(max_rel, abs(rel))
+            ours_higher += rel > 1e-6
+            gurobi_higher += rel < -1e-6
+        elif (status == "infeasible") != (g.status == "infeasible"):
+            status_diff += 1
+        if done % 1000 == 0:
+            print(f"  ... Gurobi {done}/{len(problems)}", file=sys.stderr, flush=True)
+    gr = np.asarray(g_run)
+    ours = np.asarray([p[4] for p in problems])
+    figs: dict[str, object] = {}
+    figs.update(summarize(gr, f"{prefix}_runtime"))
+    figs.update(summarize(np.asarray(g_wall), f"{prefix}_wall"))
+    figs.update({
+        f"{prefix}_nodes_mean": float(np.mean(g_nodes)),
+        f"{prefix}_compared_count": compared,
+        f"{prefix}_objective_mismatch_count": ours_higher + gurobi_higher + status_diff,
+        f"{prefix}_objective_ours_higher_count": ours_higher,
+        f"{prefix}_objective_gurobi_higher_count": gurobi_higher,
+        f"{prefix}_status_disagreements": status_diff,
+        f"{prefix}_objective_max_rel_diff": max_rel,
+        # Gurobi's own optimizer time vs our whole solve (build + search) on the same
+        # instances: conservative toward Gurobi
+        f"{prefix}_over_ours_median_ratio": float(np.median(gr) / np.median(ours)),
+        f"{prefix}_over_ours_p999_ratio": float(np.percentile(gr, 99.9)
+                                               / np.percentile(ours, 99.9)),
+        f"{prefix}_over_ours_mean_ratio": float(gr.mean() / ours.mean()),
+    })
+    return figs
 
 
 def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_every: int,
@@ -79,27 +126,6 @@ def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_eve
                 t_rem -= WARM_DT_S
     finally:
         gc.enable()
-    # Gurobi afterwards, on exactly the problems the search solved, so that neither run
-    # disturbs the other's timing
-    g_run, g_wall, g_nodes, ratio_pairs = [], [], [], []
-    mismatches = 0
-    compared = 0
-    max_rel = 0.0
-    for done, (inp, lf, status, objective, ours_ms) in enumerate(problems, 1):
-        g = backend.solve(build_miqp(model, inp, lf))
-        g_run.append(g.runtime_ms)
-        g_wall.append(g.wall_ms)
-        g_nodes.append(g.nodes)
-        ratio_pairs.append((g.runtime_ms, ours_ms))
-        if status == "optimal" and g.status == "optimal":
-            compared += 1
-            rel = abs(objective - g.objective) / max(abs(g.objective), 1.0)
-            max_rel = max(max_rel, rel)
-            mismatches += rel > 1e-6
-        elif (status == "infeasible") != (g.status == "infeasible"):
-            mismatches += 1
-        if done % 1000 == 0:
-            print(f"  ... Gurobi {done}/{len(problems)}", file=sys.stderr, flush=True)
     w = np.asarray(wall)
     c = np.asarray(cold)
     figs: dict[str, object] = {"solves": len(w), "seed": seed,
@@ -127,23 +153,10 @@ def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_eve
             figs[f"solve_p999_ms_m{lo}_{hi}"] = float(np.percentile(w[sel], 99.9))
     for s in ("optimal", "time_limited", "infeasible"):
         figs[f"status_{s}_count"] = statuses.get(s, 0)
-    if backend is not None and g_run:
-        figs.update(summarize(np.asarray(g_run), "gurobi_runtime"))
-        figs.update(summarize(np.asarray(g_wall), "gurobi_wall"))
-        gw = np.asarray([p[1] for p in ratio_pairs])
-        gr = np.asarray([p[0] for p in ratio_pairs])
-        figs.update({
-            "gurobi_nodes_mean": float(np.mean(g_nodes)),
-            "gurobi_compared_count": compared,
-            "gurobi_objective_mismatch_count": mismatches,
-            "gurobi_objective_max_rel_diff": max_rel,
-            # Gurobi's own optimizer time vs our whole solve (build + search) on the same
-            # instances: conservative toward Gurobi
-            "gurobi_over_ours_median_ratio": float(np.median(gr) / np.median(gw)),
-            "gurobi_over_ours_p999_ratio": float(np.percentile(gr, 99.9)
-                                                 / np.percentile(gw, 99.9)),
-            "gurobi_over_ours_mean_ratio": float(gr.mean() / gw.mean()),
-        })
+    if backend is not None and problems:
+        # Gurobi afterwards, on exactly the problems the search solved, so that neither run
+        # disturbs the other's timing
+        figs.update(compare_gurobi(backend, model, problems, "gurobi"))
     return figs
 
 
@@ -184,7 +197,8 @@ def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool 
     ``use_gurobi``, Gurobi on the literal MIQP of every same problem afterwards."""
     wall, nodes, counts = [], [], []
     statuses: dict[str, int] = {}
-    problems = []
+    problems = []  # (inputs, footholds, status, objective, wall) for the Gurobi pass
+    model = MpfcSolver(params).model
     gc.collect()
     gc.disable()
     try:
@@ -198,35 +212,14 @@ def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool 
                 counts.append(sol.footholds_considered)
                 statuses[sol.status] = statuses.get(sol.status, 0) + 1
                 if use_gurobi:
-                    problems.append((solver.model, solver.last_inputs, solver.last_local,
-                                     sol.status, sol.objective))
+                    problems.append((solver.last_inputs, solver.last_local, sol.status,
+                                     sol.objective, sol.solve_wall_ms))
     finally:
         gc.enable()
     w = np.asarray(wall)
     figs: dict[str, object] = {"closed_loop_solves": int(w.size)}
     if problems:
-        backend = GurobiBackend()
-        g_run, ours_higher, gurobi_higher, max_rel, status_diff = [], 0, 0, 0.0, 0
-        for model, inp, lf, status, objective in problems:
-            g = backend.solve(build_miqp(model, inp, lf))
-            g_run.append(g.runtime_ms)
-            if status == "optimal" and g.status == "optimal":
-                rel = (objective - g.objective) / max(abs(g.objective), 1.0)
-                max_rel = max(max_rel, abs(rel))
-                ours_higher += rel > 1e-6  # Gurobi found a better point: our search missed it
-                gurobi_higher += rel < -1e-6  # ours is better: Gurobi stopped short
-            elif (status == "infeasible") != (g.status == "infeasible"):
-                status_diff += 1
-        gr = np.asarray(g_run)
-        figs.update(summarize(gr, "closed_loop_gurobi_runtime"))
-        figs["closed_loop_gurobi_objective_ours_higher_count"] = ours_higher
-        figs["closed_loop_gurobi_objective_gurobi_higher_count"] = gurobi_higher
-        figs["closed_loop_gurobi_objective_max_rel_diff"] = max_rel
-        figs["closed_loop_gurobi_status_disagreements"] = status_diff
-        figs["closed_loop_gurobi_over_ours_median_ratio"] = float(np.median(gr) / np.median(w))
-        figs["closed_loop_gurobi_over_ours_p999_ratio"] = float(
-            np.percentile(gr, 99.9) / np.percentile(w, 99.9))
-    figs.update(summarize(w, "closed_loop_solve"))
+        figs.update(compare_gurobi(GurobiBackend(), model, problems, "closed_loop_gurobi"))
     cnt = np.asarray(counts)
     figs.update({
         "closed_loop_nodes_mean": float(np.mean(nodes)),
