@@ -82,3 +82,21 @@ def write_json(
         out[key] = value
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     Path(path).write_text(json.dumps(out, indent=2, sort_keys=False) + "\n", encoding="utf-8")
+
+
+class DirectInbox:
+    """A ``runtime.node.Inbox`` for calling a node's ``tick`` directly, without a bus:
+    ``messages[role]`` is what each input holds (all fresh), the trigger is ``trigger_role``'s."""
+
+    def __init__(self, trigger_role: str) -> None:
+        self.trigger_role = trigger_role
+        self.messages: dict[str, object] = {}
+
+    def trigger(self) -> object | None:
+        return self.messages.get(self.trigger_role)
+
+    def latest(self, role: str) -> object | None:
+        return self.messages.get(role)
+
+    def is_fresh(self, role: str) -> bool:
+        return role in self.messages

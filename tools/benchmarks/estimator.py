@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import print_table, summarize, write_json
+from tools.benchmarks.common import DirectInbox, print_table, summarize, write_json
 
 PERIOD_MS = 0.5
 
@@ -35,20 +35,6 @@ class _EncodingContext:
         self.bytes_out += len(msg.encode())
 
 
-class _Inbox:
-    def __init__(self) -> None:
-        self.msg: bytes | None = None
-
-    def latest(self, role: str) -> Any:
-        return self.msg
-
-    def is_fresh(self, role: str) -> bool:
-        return True
-
-    def trigger(self) -> Any:
-        return self.msg
-
-
 def time_ticks(packets: list[bytes], repeats: int = 1
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Tick a fresh estimator node on every packet; returns the node tick's wall time, its
@@ -60,7 +46,7 @@ def time_ticks(packets: list[bytes], repeats: int = 1
     upd_ms: list[float] = []
     for _ in range(repeats):
         node = StateEstimatorNode()
-        ctx, inbox = _EncodingContext(), _Inbox()
+        ctx, inbox = _EncodingContext(), DirectInbox("robot_output")
         node.setup(ctx)
         est = node.estimator
         assert est is not None
@@ -69,7 +55,7 @@ def time_ticks(packets: list[bytes], repeats: int = 1
         gc.disable()
         try:
             for raw in packets:
-                inbox.msg = raw
+                inbox.messages["robot_output"] = raw
                 c0 = time.thread_time_ns()
                 t0 = time.perf_counter_ns()
                 node.tick(ctx, inbox)

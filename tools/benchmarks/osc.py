@@ -18,30 +18,19 @@ from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import print_table, summarize, write_json
+from tools.benchmarks.common import DirectInbox, print_table, summarize, write_json
 
 DEADLINE_MS = 1.0
 
 
-class _MpfcPorts:
-    """The MPFC node's context and inbox for a direct call (no bus): newest state, command."""
+class _Published:
+    """The MPFC node's context for a direct call: keeps the last message of each output."""
 
     def __init__(self) -> None:
         self.out: dict[str, Any] = {}
-        self.state: Any = None
-        self.command: Any = None
 
     def publish(self, role: str, msg: Any) -> None:
         self.out[role] = msg
-
-    def trigger(self) -> Any:
-        return self.state
-
-    def is_fresh(self, role: str) -> bool:
-        return role == "command" and self.command is not None
-
-    def latest(self, role: str) -> Any:
-        return self.command if role == "command" else None
 
 
 def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, Any, Any]]:
@@ -62,7 +51,7 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     osc = OscController()
     profile = load_profile(HW_CONFIG_DIR / "sim.yaml")
     mpfc = make_node(profile.processes["mpfc"], profile)
-    ctx, inbox = _MpfcPorts(), _MpfcPorts()
+    ctx, inbox = _Published(), DirectInbox("state")
     cmd = command_t()
     cmd.mode = 1
     cmd.vx = 0.375
@@ -77,7 +66,7 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
                 s.header.utime = round(t * 1e6)
                 s.num_positions, s.num_velocities = m.nq, m.nv
                 s.q, s.v = d.qpos.tolist(), d.qvel.tolist()
-                inbox.state, inbox.command = s, cmd
+                inbox.messages["state"], inbox.messages["command"] = s, cmd
                 mpfc.tick(ctx, inbox)
                 plan = ctx.out["plan"]
         cmd.yaw_rate = -2.0 * osc.model.pelvis_yaw() if k > 0 else 0.0  # operator steering
