@@ -113,7 +113,8 @@ class OscController:
             return self._safe(q, v, fault, t0)
         m = self.model
         plan_ok = plan is not None and _plan_ok(plan)
-        swing = self._swing_leg(t_s, plan if plan_ok else None)
+        phase = GaitPhase.from_plan(plan, t_s) if plan_ok else None
+        swing = self._swing_leg(phase)
         if swing is not None:
             # The OSC's model holds the leaf springs rigid (14c). Fed the swing leg's measured
             # deflection, the swing-foot feedback chases the springs' ringing through motors
@@ -137,8 +138,10 @@ class OscController:
                 yaw_rate = float(command.yaw_rate) if command is not None else 0.0
                 if not math.isfinite(yaw_rate):
                     yaw_rate = 0.0  # a garbled radio command must not reach the QP
+                if phase is None:  # cannot happen: _choose_mode leaves walking without one
+                    raise ValueError("walking without a valid MPFC plan")
                 stance = self.walking.add_tasks(self.rows, self.log, self.qp, m, q, v, t_s,
-                                                plan, yaw_rate)
+                                                plan, phase, yaw_rate)
             else:
                 self.qp.moment_count = 0
                 stance = self.standing.add_tasks(self.rows, self.log, m, q, v, t_s)
@@ -178,12 +181,11 @@ class OscController:
         return self.u.copy(), dbg
 
     # ------------------------------------------------------------------ internals
-    def _swing_leg(self, t: float, plan: Any | None) -> int | None:
+    def _swing_leg(self, phase: GaitPhase | None) -> int | None:
         """The leg swinging this tick whose springs the OSC treats as rigid, or None."""
-        if not self._rigid_swing_springs or self.mode != WALKING or plan is None:
-            return None  # (plan: None unless it passed _plan_ok this tick)
-        ph = GaitPhase.from_plan(plan, t)
-        return 1 - ph.stance if ph.single_stance else None
+        if not self._rigid_swing_springs or self.mode != WALKING or phase is None:
+            return None  # (phase: None unless the plan passed _plan_ok this tick)
+        return 1 - phase.stance if phase.single_stance else None
 
     def _choose_mode(self, t: float, plan: Any | None, command: Any | None,
                      plan_ok: bool) -> str | None:

@@ -293,10 +293,11 @@ class WalkingController:
         self.swing.active = False
 
     def add_tasks(self, rows: TaskRows, log: TaskLog, qp: OscQP, m: CassieModel, q: np.ndarray,
-                  v: np.ndarray, t: float, plan: Any, yaw_rate: float) -> np.ndarray:
-        """Append the walking tasks for the plan's phase; return the stance-point mask."""
+                  v: np.ndarray, t: float, plan: Any, ph: GaitPhase,
+                  yaw_rate: float) -> np.ndarray:
+        """Append the walking tasks for the plan's phase ``ph`` (``GaitPhase.from_plan``);
+        return the stance-point mask."""
         p = self.p
-        ph = GaitPhase.from_plan(plan, t)
         self.phase = ph
         st = ph.stance
         sw = 1 - st
