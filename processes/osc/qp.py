@@ -124,7 +124,6 @@ class _Solver:
                 self.x_u[nu + 3 * i + a] = mu * fz_max
         self.ready = False
         self._no_lam = np.zeros(0)
-        self.nu = nu
         self.fz_max = fz_max
         self._bounds_changed = False
         self._caps_default = True  # x_u holds fz_max on every point
