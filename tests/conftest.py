@@ -22,6 +22,16 @@ if not os.environ.get("MENAGERIE_ROOT"):
         os.environ["MENAGERIE_ROOT"] = str(shared)
 
 
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Compile the state estimator's numba kernels into their on-disk cache once, up front:
+    on a fresh clone the first compile takes ~10 s, which would otherwise land inside the
+    start-up timeout of whichever test first launches an estimator process."""
+    if os.environ.get("MENAGERIE_ROOT"):
+        from processes.state_estimator.estimator import CassieEstimator
+
+        CassieEstimator()
+
+
 @pytest.fixture
 def lcm_url(monkeypatch: pytest.MonkeyPatch) -> str:
     """A multicast port of this test's own, so concurrent runs and tests never hear each other."""

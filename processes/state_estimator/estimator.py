@@ -10,9 +10,11 @@ preallocated; the returned ``Estimate`` is the same object every call (copy to k
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass, field
 
 import mujoco
+import numba
 import numpy as np
 
 from runtime.cassie_packets import OUTPUT_LAYOUT, OutputPacket
@@ -45,6 +47,38 @@ if OUTPUT_LAYOUT.fields["joint_vel"][1] + 8 * OUTPUT_LAYOUT["joint_vel"].shape[0
         _F0 + 8 * _NFLOAT):
     raise ImportError("runtime.cassie_packets layout changed: update the estimator's checks")
 _FIELD_OF = [f"{f}[{i}]" for f in _FIELDS for i in range(OUTPUT_LAYOUT[f].shape[0])]
+
+
+@numba.njit(cache=True, nogil=True)
+def _in_bounds(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, qn_lo: float,
+               qn_hi: float) -> bool:
+    """Every double within its bounds and the IMU quaternion (``x[0:4]``) of unit norm."""
+    for i in range(x.size):
+        if not (lo[i] <= x[i] <= hi[i]):
+            return False
+    n = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]
+    return qn_lo <= n <= qn_hi
+
+
+@numba.njit(cache=True, nogil=True)
+def _sole_points(foot_pos: np.ndarray, foot_axis: np.ndarray, up: np.ndarray,
+                 r_imu: np.ndarray, radius: float, half: float, modes: np.ndarray,
+                 h: np.ndarray, switched: np.ndarray) -> None:
+    """Per foot: pick the bearing sole point (mid-sole, or heel/toe when pitched, with
+    hysteresis), write it into ``h`` (IMU frame) and whether it changed into ``switched``."""
+    for k in range(2):
+        sp = (foot_axis[k, 0] * up[0] + foot_axis[k, 1] * up[1]
+              + foot_axis[k, 2] * up[2])  # sine of the foot pitch
+        mode = modes[k]
+        if mode == 0 and abs(sp) > PITCH_ON:
+            mode = -1 if sp > 0 else 1
+        elif mode != 0 and (abs(sp) < PITCH_OFF or mode * sp > 0):
+            mode = 0 if abs(sp) < PITCH_ON else (-1 if sp > 0 else 1)
+        switched[k] = mode != modes[k]
+        modes[k] = mode
+        for i in range(3):
+            h[k, i] = (foot_pos[k, i] - r_imu[i] - radius * up[i]
+                       + mode * half * foot_axis[k, i])
 
 
 class RejectedPacket(ValueError):
@@ -81,6 +115,7 @@ class CassieEstimator:
 
     def __init__(self, params: EstimatorParams | None = None,
                  model: mujoco.MjModel | None = None) -> None:
+        t0 = time.perf_counter()
         self.params = p = params or EstimatorParams()
         self.kin = LegKinematics(model)
         m = self.kin.m
@@ -121,6 +156,8 @@ class CassieEstimator:
                 his.append(np.full(n, sym[name]))
         self._lo = np.concatenate(los)
         self._hi = np.concatenate(his)
+        self._qn_lo = (1.0 - lm.quat_norm_tol) ** 2  # bounds on the squared quaternion norm
+        self._qn_hi = (1.0 + lm.quat_norm_tol) ** 2
         self._view_pkt: OutputPacket | None = None
         self._view = np.zeros(_NFLOAT)
         self.initialized = False
@@ -130,10 +167,18 @@ class CassieEstimator:
         self._last_utime = 0
         self._gyro_prev = np.zeros(3)
         self._h = np.zeros((2, 3))
-        self._sole_mode = [0, 0]  # per foot: 0 mid-sole, -1 / +1 the end at -/+ the axis
+        self._sole_mode = np.zeros(2, dtype=np.int64)  # per foot: 0 mid-sole, -1 / +1 the end
+        self._switched = np.zeros(2, dtype=np.bool_)  # at -/+ the axis; which feet switched
         self._quat = np.zeros(4)
         self._vb = np.zeros(3)
         self._alip_utime = 0
+        # compile (or load from the on-disk cache) the kernels now, not on the first packet
+        _in_bounds(self._lo, self._lo, self._hi, 0.0, 2.0)
+        self._sole_points(np.array((0.0, 0.0, 1.0)))
+        if (setup_s := time.perf_counter() - t0) > 3.0:
+            log.info("estimator set up in %.1f s: numba compiled its kernels (first start on "
+                     "this machine or after a code change; cached in __pycache__ from now)",
+                     setup_s)
 
     # -- validation --------------------------------------------------------------------------
     def check(self, pkt: OutputPacket) -> None:
@@ -142,11 +187,8 @@ class CassieEstimator:
         One vectorised comparison of all 56 doubles against per-field bounds; the reason is
         worked out only when a packet fails."""
         x = self._floats_of(pkt)
-        n = float(x[0:4] @ x[0:4])
-        tol = self.params.limits.quat_norm_tol
-        if ((x < self._lo) | (x > self._hi)).any() or not (
-                (1.0 - tol) ** 2 <= n <= (1.0 + tol) ** 2):
-            raise RejectedPacket(self._reason(pkt, x, n))
+        if not _in_bounds(x, self._lo, self._hi, self._qn_lo, self._qn_hi):
+            raise RejectedPacket(self._reason(pkt, x, float(x[0:4] @ x[0:4])))
         if self.initialized and pkt.utime <= self._last_utime:
             self._stale += 1
             if self._stale >= RESTART_AFTER:
@@ -169,7 +211,7 @@ class CassieEstimator:
         return self._view
 
     def _reason(self, pkt: OutputPacket, x: np.ndarray, n: float) -> str:
-        bad = np.flatnonzero((x < self._lo) | (x > self._hi))
+        bad = np.flatnonzero(~((x >= self._lo) & (x <= self._hi)))
         if bad.size:
             i = int(bad[0])
             return (f"{_FIELD_OF[i]} = {x[i]:.4g} is outside [{self._lo[i]:.4g}, "
@@ -210,7 +252,7 @@ class CassieEstimator:
         self.updates += 1
         return self.est
 
-    def _sole_points(self, up: np.ndarray) -> list[bool]:
+    def _sole_points(self, up: np.ndarray) -> np.ndarray:
         """The point of each line foot that bears on the ground, from the IMU (IMU frame).
 
         Flat, the sole under the capsule centre; pitched more than ``PITCH_ON``, the sole under
@@ -218,26 +260,10 @@ class CassieEstimator:
         point that stays put while the foot rolls about it; a switch starts a new contact.
         ``up`` is the world z axis in the pelvis frame. Returns which feet switched.
         """
-        kin, h = self.kin, self._h
-        r, half = kin.foot_radius, kin.foot_half_length
-        switched = [False, False]
-        sin_pitch = kin.foot_axis @ up
-        for k in (0, 1):
-            sp = float(sin_pitch[k])
-            mode = self._sole_mode[k]
-            if mode == 0 and abs(sp) > PITCH_ON:
-                mode = -1 if sp > 0 else 1
-            elif mode != 0 and (abs(sp) < PITCH_OFF or mode * sp > 0):
-                mode = 0 if abs(sp) < PITCH_ON else (-1 if sp > 0 else 1)
-            if mode != self._sole_mode[k]:
-                switched[k] = True
-                self._sole_mode[k] = mode
-            hk = h[k]
-            np.subtract(kin.foot_pos[k], self.r_imu, out=hk)
-            hk -= r * up
-            if mode:
-                hk += (mode * half) * kin.foot_axis[k]
-        return switched
+        kin = self.kin
+        _sole_points(kin.foot_pos, kin.foot_axis, up, self.r_imu, kin.foot_radius,
+                     kin.foot_half_length, self._sole_mode, self._h, self._switched)
+        return self._switched
 
     def _initialize(self, pkt: OutputPacket) -> None:
         """First packet: orientation from the IMU, at rest, the lower sole on ``ground_z``."""
@@ -245,7 +271,7 @@ class CassieEstimator:
         R = np.zeros(9)
         mujoco.mju_quat2Mat(R, pkt.imu_quat / np.linalg.norm(pkt.imu_quat))
         R = R.reshape(3, 3)
-        self._sole_mode[:] = [0, 0]
+        self._sole_mode[:] = 0
         self._sole_points(R[2])
         feet_w = (self._h + self.r_imu) @ R.T  # sole points relative to the pelvis, world axes
         z = p.ground_z - feet_w[:, 2].min()

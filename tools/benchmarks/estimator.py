@@ -62,13 +62,14 @@ def time_ticks(packets: list[bytes], repeats: int = 1
                 t1 = time.perf_counter_ns()
                 node_ms.append((t1 - t0) / 1e6)
                 cpu_ms.append((time.thread_time_ns() - c0) / 1e6)
-            # the estimator alone (no packet decode, no messages), on the decoded packets
+            # the estimator alone (no packet decode, no messages), on the decoded packets,
+            # with the ALIP part on every network_every-th packet as in the node
             est2 = type(est)(node.params, est.kin.m)
-            pkt = node.pkt
-            for raw in packets:
+            pkt, every = node.pkt, node.params.network_every
+            for i, raw in enumerate(packets):
                 pkt.decode(raw)
                 t0 = time.perf_counter_ns()
-                est2.update(pkt)
+                est2.update(pkt, alip=i % every == 0)
                 upd_ms.append((time.perf_counter_ns() - t0) / 1e6)
         finally:
             gc.enable()
