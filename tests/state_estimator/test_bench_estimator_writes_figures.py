@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from tools.benchmarks.estimator import main
 
 
@@ -18,3 +20,21 @@ def test_bench_writes_timing_and_accuracy_figures(tmp_path, capsys):
         assert fig[key] >= 0.0, key
     assert fig["vel_rmse_m_s"] < 0.01  # standing on the holder: the estimate is still too
     assert "velocity RMSE" in capsys.readouterr().out
+
+
+def test_bench_times_a_git_baseline_side_by_side(tmp_path, capsys):
+    # the baseline is this repository's HEAD: same code both sides, so the ratios are near 1
+    out = tmp_path / "est.json"
+    assert main(["--seconds", "0.2", "--motion", "still", "--baseline", "HEAD",
+                 "--json", str(out)]) == 0
+    fig = json.loads(out.read_text())
+    assert fig["baseline_rev"] == "HEAD" and fig["side_by_side_repeats"] == 3
+    for side in ("baseline", "this"):
+        assert fig[f"{side}_tick_median_ms"] > 0.0
+    assert 0.2 < fig["speedup_median_ratio"] < 5.0
+    assert "side by side: baseline HEAD" in capsys.readouterr().out
+
+
+def test_bench_names_a_revision_git_does_not_know():
+    with pytest.raises(SystemExit, match="no-such-rev"):
+        main(["--seconds", "0.1", "--motion", "still", "--baseline", "no-such-rev"])

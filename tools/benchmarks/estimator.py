@@ -35,17 +35,19 @@ class _EncodingContext:
         self.bytes_out += len(msg.encode())
 
 
-def time_ticks(packets: list[bytes], repeats: int = 1
+def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Tick a fresh estimator node on every packet; returns the node tick's wall time, its
-    thread CPU time (the work itself, without preemption), and the update-only wall time, ms."""
-    from processes.state_estimator.process import StateEstimatorNode
+    thread CPU time (the work itself, without preemption), and the update-only wall time, ms.
+    ``node_cls``: the node class to time (default: this tree's ``StateEstimatorNode``)."""
+    if node_cls is None:
+        from processes.state_estimator.process import StateEstimatorNode as node_cls
 
     node_ms: list[float] = []
     cpu_ms: list[float] = []
     upd_ms: list[float] = []
     for _ in range(repeats):
-        node = StateEstimatorNode()
+        node = node_cls()
         ctx, inbox = _EncodingContext(), DirectInbox("robot_output")
         node.setup(ctx)
         est = node.estimator
@@ -75,6 +77,57 @@ def time_ticks(packets: list[bytes], repeats: int = 1
             gc.enable()
             gc.unfreeze()
     return np.array(node_ms), np.array(cpu_ms), np.array(upd_ms)
+
+
+def baseline_node(rev: str) -> type:
+    """The ``StateEstimatorNode`` of git revision ``rev`` of ``processes/state_estimator``,
+    imported beside this tree's as package ``baseline_state_estimator`` (its imports of
+    ``runtime``/``lcmtypes`` resolve to this tree's: a baseline for the estimator's own code)."""
+    import importlib
+    import io
+    import subprocess
+    import sys
+    import tarfile
+    import tempfile
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    try:
+        tar = subprocess.run(["git", "-C", str(repo), "archive", rev, "processes/state_estimator"],
+                             check=True, capture_output=True).stdout
+    except (OSError, subprocess.CalledProcessError) as exc:
+        err = getattr(exc, "stderr", b"") or b""
+        raise SystemExit(f"--baseline {rev}: cannot read processes/state_estimator at that "
+                         f"revision from git ({err.decode().strip() or exc}); give a commit "
+                         "of this repository") from exc
+    root = Path(tempfile.mkdtemp(prefix="estimator-baseline-"))
+    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
+        tf.extractall(root, filter="data")
+    (root / "processes" / "state_estimator").rename(root / "baseline_state_estimator")
+    sys.path.insert(0, str(root))
+    return importlib.import_module("baseline_state_estimator.process").StateEstimatorNode
+
+
+def side_by_side(packets: list[bytes], baseline: type, repeats: int = 3) -> dict[str, float]:
+    """Node tick time of ``baseline`` and of this tree's node on the same packets, in
+    interleaved repeats (so both see the same machine load); figures and ratios."""
+    from processes.state_estimator.process import StateEstimatorNode
+
+    runs: dict[str, list[np.ndarray]] = {"baseline": [], "this": []}
+    for _ in range(repeats):
+        runs["baseline"].append(time_ticks(packets, node_cls=baseline)[0])
+        runs["this"].append(time_ticks(packets, node_cls=StateEstimatorNode)[0])
+    out: dict[str, float] = {"side_by_side_repeats": repeats}
+    for name, parts in runs.items():
+        a = np.concatenate(parts)
+        out[f"{name}_tick_p10_ms"] = float(np.percentile(a, 10))
+        out[f"{name}_tick_median_ms"] = float(np.median(a))
+        out[f"{name}_tick_p99_ms"] = float(np.percentile(a, 99))
+        out[f"{name}_tick_max_ms"] = float(a.max())
+        out[f"{name}_tick_over_period_ratio"] = float((a > PERIOD_MS).mean())
+    for k in ("p10", "median", "p99"):
+        out[f"speedup_{k}_ratio"] = out[f"baseline_tick_{k}_ms"] / out[f"this_tick_{k}_ms"]
+    return out
 
 
 def machine_load() -> dict[str, float]:
@@ -126,11 +179,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, help="write the figures as one flat JSON object")
     ap.add_argument("--seconds", type=float, default=4.0, help="sim seconds of the scripted run")
     ap.add_argument("--motion", default="steps", help="scripted motion: still, squat, steps")
+    ap.add_argument("--baseline", metavar="REV", default=None,
+                    help="also time the estimator of git revision REV on the same packets, "
+                         "interleaved with this tree's (3 repeats each), and print the ratios")
     args = ap.parse_args(argv)
     from processes.state_estimator.scripted import MOTIONS, run_loop
 
     if args.motion not in MOTIONS:
         ap.error(f"--motion must be one of {', '.join(MOTIONS)}")
+    baseline = baseline_node(args.baseline) if args.baseline else None  # fail before the run
     t0 = time.perf_counter()
     rec = run_loop(args.motion, args.seconds)
     run_s = time.perf_counter() - t0
@@ -185,6 +242,18 @@ def main(argv: list[str] | None = None) -> int:
         "contact agreement": f"{acc['contact_agreement_ratio']:.1%}",
         "false contact": f"{acc['false_contact_ratio']:.2%}",
     })
+    if baseline is not None:
+        sbs = side_by_side(rec.packets, baseline)
+        figures["baseline_rev"] = args.baseline
+        figures.update(sbs)
+        print_table(f"side by side: baseline {args.baseline} vs this tree (ms, "
+                    f"{sbs['side_by_side_repeats']} interleaved repeats)", [
+            (f"tick {k}", f"{sbs[f'baseline_tick_{k}_ms']:.4f} -> {sbs[f'this_tick_{k}_ms']:.4f}"
+                          f"  ({sbs[f'speedup_{k}_ratio']:.2f}x)")
+            for k in ("p10", "median", "p99")] + [
+            ("tick max", f"{sbs['baseline_tick_max_ms']:.3f} -> {sbs['this_tick_max_ms']:.3f}"),
+            ("ticks over 0.5 ms", f"{sbs['baseline_tick_over_period_ratio']:.2%} -> "
+                                  f"{sbs['this_tick_over_period_ratio']:.2%}")])
     write_json(args.json, "estimator", figures)
     return 0
 
