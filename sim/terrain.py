@@ -2,16 +2,20 @@
 
 A ``Terrain`` is plain data: the boxes ``sim.model`` adds as MuJoCo geoms, and the convex
 foothold polygons (each box's top face shrunk by a margin) a controller can use when it runs
-with perfect terrain knowledge. Terrains come from YAML files (``hw_config/terrains/``) or from
-seeded generators: ``flat``, ``stairs``, ``beam``, ``stones`` (the paper's Table I stepping
-stones) and ``blocks``. The robot starts at the origin facing +x, standing at ``start_z``.
+with perfect terrain knowledge. A terrain file may also give the foot's size
+(``foot_half_size``): the footholds then shrink by it too, so that a foot centred anywhere in
+a foothold stands wholly on its face; this is what the paper's ground-truth footholds do, which
+"account for the width and length of the foot separately" (Section VIII-A, Fig. 12).
+Terrains come from YAML files (``hw_config/terrains/``) or from seeded generators: ``flat``,
+``stairs``, ``beam``, ``stones`` (the paper's Table I stepping stones) and ``blocks``. The
+robot starts at the origin facing +x, standing at ``start_z``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -88,6 +92,56 @@ class Terrain:
     start_z: float = 0.0  # height of the surface under the robot's feet at start
     seed: int | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
+    #: the footholds before they were shrunk for the foot (``foot_eroded``); empty if they
+    #: were not: where a foot centre may land, as opposed to where the controller should aim
+    surfaces: tuple[Foothold, ...] = ()
+
+    @property
+    def landing_surfaces(self) -> tuple[Foothold, ...]:
+        """The faces (less the margin) a foot centre may land on, for judging a footstep."""
+        return self.surfaces or self.footholds
+
+
+def eroded_foothold(fh: Foothold, half_length: float, half_width: float) -> Foothold | None:
+    """``fh`` less the foot: the foot centres for which an axis-aligned (robot facing +x)
+    footprint of ``2 half_length`` x ``2 half_width`` lies inside ``fh``, or None if none do.
+
+    The Minkowski difference of a convex polygon and a rectangle: each edge's halfspace
+    ``a . p <= b`` moves inwards by the rectangle's support ``half_length |a_x| + half_width
+    |a_y|``; the new vertices are the intersections of neighbouring edges.
+    """
+    a, b = fh.halfspaces()
+    b = b - (half_length * np.abs(a[:, 0]) + half_width * np.abs(a[:, 1]))
+    n = len(b)
+    verts = np.zeros((n, 2))
+    for i in range(n):
+        (a0, a1), (c0, c1) = a[i - 1, :2], a[i, :2]
+        det = a0 * c1 - a1 * c0
+        if abs(det) < 1e-12:
+            return None
+        verts[i] = ((b[i - 1] * c1 - a1 * b[i]) / det, (a0 * b[i] - b[i - 1] * c0) / det)
+    # an edge that vanished leaves vertices outside the shrunk halfspaces (or a flipped
+    # polygon of no area): the foot does not fit
+    if np.any(verts @ a[:, :2].T > b + 1e-9):
+        return None
+    nxt = np.roll(verts, -1, axis=0)
+    area = 0.5 * float(np.sum(verts[:, 0] * nxt[:, 1] - nxt[:, 0] * verts[:, 1]))
+    if area <= 1e-9:
+        return None
+    nx, ny, nz = fh.normal
+    z = (fh.offset - nx * verts[:, 0] - ny * verts[:, 1]) / nz
+    return Foothold(np.column_stack([verts, z]), fh.normal, fh.offset)
+
+
+def foot_eroded(terrain: Terrain, half_length: float, half_width: float) -> Terrain:
+    """``terrain`` with its footholds shrunk for the foot (``eroded_foothold``); footholds the
+    foot does not fit on are dropped. The unshrunk ones stay as ``surfaces``."""
+    if half_length <= 0.0 and half_width <= 0.0:
+        return terrain
+    holds = [eroded_foothold(f, half_length, half_width) for f in terrain.footholds]
+    params = {**terrain.params, "foot_half_size": (half_length, half_width)}
+    return replace(terrain, footholds=tuple(f for f in holds if f is not None),
+                   surfaces=terrain.footholds, params=params)
 
 
 def _top_foothold(box: Box, margin: float) -> Foothold:
@@ -300,14 +354,17 @@ _INT_PARAMS = {"count", "seed"}
 _MAY_BE_ZERO_OR_NEG = {"seed", "max_yaw_deg", "margin", "start_length"}
 
 
-def generate(name: str, **params: Any) -> Terrain:
-    """Run the generator called ``name`` with ``params`` (see ``GENERATORS``)."""
-    return GENERATORS[name](**params)
+def generate(name: str, foot_half_size: tuple[float, float] = (0.0, 0.0),
+             **params: Any) -> Terrain:
+    """Run the generator called ``name`` with ``params`` (see ``GENERATORS``), its footholds
+    shrunk for a foot of ``foot_half_size`` (``foot_eroded``)."""
+    return foot_eroded(GENERATORS[name](**params), *foot_half_size)
 
 
 # -- YAML ----------------------------------------------------------------------------------
 
-_TOP_KEYS = {"terrain", "seed", "params", "boxes", "ground_z", "start_z", "foothold_margin"}
+_TOP_KEYS = {"terrain", "seed", "params", "boxes", "ground_z", "start_z", "foothold_margin",
+             "foot_half_size"}
 
 
 def _number(file: str, key: str, value: Any, *, integer: bool = False, positive: bool = True
@@ -332,7 +389,8 @@ def load_terrain(path: str | Path) -> Terrain:
     """Read a terrain YAML file; raises ``ConfigError`` naming the file and key on bad input.
 
     Either ``terrain: NAME`` (a generator, with ``params`` and an optional ``seed``) or
-    ``terrain: boxes`` with a ``boxes`` list of ``{center, size, yaw_deg}``.
+    ``terrain: boxes`` with a ``boxes`` list of ``{center, size, yaw_deg}``; either may give
+    ``foot_half_size: [half_length, half_width]`` to shrink the footholds for the foot.
     """
     file = str(path)
     try:
@@ -354,12 +412,21 @@ def load_terrain(path: str | Path) -> Terrain:
     margin = _number(file, "foothold_margin", margin, positive=False)
     if margin < 0:
         raise ConfigError(file, "foothold_margin", f"must be >= 0, got {margin!r}")
+    foot = doc.get("foot_half_size", [0.0, 0.0])
+    if not isinstance(foot, list) or len(foot) != 2:
+        raise ConfigError(file, "foot_half_size",
+                          f"must be [half_length, half_width], got {foot!r}")
+    half_length, half_width = (float(_number(file, f"foot_half_size[{i}]", v, positive=False))
+                               for i, v in enumerate(foot))
+    if half_length < 0 or half_width < 0:
+        raise ConfigError(file, "foot_half_size", f"must be >= 0, got {foot!r}")
 
     if name == "boxes":
         for key in ("params", "seed"):
             if key in doc:
                 raise ConfigError(file, key, "not used by 'terrain: boxes'",
-                                  allowed="boxes, ground_z, start_z, foothold_margin")
+                                  allowed="boxes, ground_z, start_z, foothold_margin, "
+                                  "foot_half_size")
         raw = doc.get("boxes")
         if not isinstance(raw, list) or not raw:
             raise ConfigError(file, "boxes", "must be a non-empty list of boxes")
@@ -382,7 +449,8 @@ def load_terrain(path: str | Path) -> Terrain:
         if ground is not None:
             ground = _number(file, "ground_z", ground, positive=False)
         start = _number(file, "start_z", doc.get("start_z", 0.0), positive=False)
-        return from_boxes(boxes, ground_z=ground, start_z=float(start), margin=float(margin))
+        terrain = from_boxes(boxes, ground_z=ground, start_z=float(start), margin=float(margin))
+        return foot_eroded(terrain, half_length, half_width)
 
     for key in ("boxes", "ground_z", "start_z"):
         if key in doc:
@@ -416,7 +484,7 @@ def load_terrain(path: str | Path) -> Terrain:
         lo, hi = kwargs.get("size_min", 0.25), kwargs.get("size_max", 0.6)
         if lo > hi:
             raise ConfigError(file, "params.size_min", f"{lo} is above size_max {hi}")
-    return gen(**kwargs)
+    return foot_eroded(gen(**kwargs), half_length, half_width)
 
 
 def _defaults(fn: Callable[..., Terrain]) -> dict[str, Any]:

@@ -148,7 +148,7 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path) -> str:
         path = work / "stones.yaml"
         path.write_text(
             "terrain: stones\n"
-            f"seed: {seed}\nfoothold_margin: 0.02\n"
+            f"seed: {seed}\nfoothold_margin: 0.02\nfoot_half_size: [0.10, 0.02]\n"
             f"params: {{d_min: {dmin if dmin is not None else 0.35}, platform: 1.0,"
             " pit_depth: 0.5}\n"
         )
@@ -186,7 +186,9 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
 
     terrain = _terrain_file(name, dmin, seed, work)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
-    footholds = list(terrain_mod.load_terrain(terrain).footholds)
+    # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
+    # the foot that the controller aims within
+    footholds = list(terrain_mod.load_terrain(terrain).landing_surfaces)
     return prof_path, load_profile(prof_path), launch, footholds
 
 
