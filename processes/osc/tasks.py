@@ -57,6 +57,15 @@ class WalkingParams:
     com_clip: float = 0.025  # |z_des - z_com| limit, Section V-A
     swing_clearance: float = 0.15  # c of Section V-B-1
     swing_degree: int = 8  # polynomial degree of the swing QP (23)
+    #: rise (m) from which a swing uses the step-up waypoints (walking.swing_waypoints); 0: the
+    #: paper's midpoint for every swing
+    swing_step_up_min: float = 0.0
+    swing_step_up_clearance: float = 0.06  # step up: midpoint height over the higher end
+    swing_step_up_height: float = 0.04  # step up: lift/approach points' height over it
+    swing_lift_tau: float = 0.25  # step up: the lift point's time, fraction of T
+    swing_approach_tau: float = 0.8  # step up: the approach point's time, fraction of T
+    #: swing toe target: "plane" = foot at atan(k_x) (Section V-C), "level" = foot level
+    swing_toe: str = "plane"
 
 
 @dataclass
@@ -84,6 +93,7 @@ class SafetyParams:
 
 
 SPRING_MODES = ("rigid_swing", "measured")
+SWING_TOE_MODES = ("plane", "level")
 
 
 @dataclass
@@ -192,8 +202,14 @@ def _parse(raw: dict[str, Any], file: str) -> OscParams:
     w = _section(raw, "walking", file)
     pw = "walking."
     _only(w, ("pelvis", "com", "swing_foot", "toe", "hip_yaw", "ankle_torque_weight",
-              "com_height", "com_filter_hz", "com_clip", "swing_clearance", "swing_degree"),
+              "com_height", "com_filter_hz", "com_clip", "swing_clearance", "swing_degree",
+              "swing_step_up_min", "swing_step_up_clearance", "swing_step_up_height",
+              "swing_lift_tau", "swing_approach_tau", "swing_toe"),
           file, pw)
+    toe_mode = w.get("swing_toe", "plane")
+    if toe_mode not in SWING_TOE_MODES:
+        raise ConfigError(file, pw + "swing_toe", f"{toe_mode!r} is not a swing toe mode",
+                          ", ".join(SWING_TOE_MODES))
     walking = WalkingParams(
         pelvis=_gains(w, "pelvis", 3, file, pw),
         com=_gains(w, "com", 3, file, pw),
@@ -206,6 +222,12 @@ def _parse(raw: dict[str, Any], file: str) -> OscParams:
         com_clip=_num(w, "com_clip", file, pw, 0.0, 0.2, 0.025),
         swing_clearance=_num(w, "swing_clearance", file, pw, 0.0, 0.4, 0.15),
         swing_degree=int(_num(w, "swing_degree", file, pw, 7, 12, 8)),
+        swing_step_up_min=_num(w, "swing_step_up_min", file, pw, 0.0, 1.0, 0.0),
+        swing_step_up_clearance=_num(w, "swing_step_up_clearance", file, pw, 0.0, 0.4, 0.06),
+        swing_step_up_height=_num(w, "swing_step_up_height", file, pw, 0.0, 0.2, 0.04),
+        swing_lift_tau=_num(w, "swing_lift_tau", file, pw, 0.1, 0.45, 0.25),
+        swing_approach_tau=_num(w, "swing_approach_tau", file, pw, 0.55, 0.9, 0.8),
+        swing_toe=str(toe_mode),
     )
     s = _section(raw, "standing", file)
     ps = "standing."

@@ -132,6 +132,37 @@ def swing_midpoint(p0: np.ndarray, p_des: np.ndarray, clearance: float) -> list[
     return [a[0] + 0.5 * dx + c * bx, a[1] + 0.5 * dy + c * by, a[2] + 0.5 * dz + c * bz]
 
 
+def swing_waypoints(p0: np.ndarray, p_des: np.ndarray, clearance: float, step_up_min: float,
+                    step_up_clearance: float, step_up_height: float, lift_tau: float,
+                    approach_tau: float) -> list[tuple[float, list[float]]]:
+    """The waypoints (tau, p) of one swing, tau in fractions of the swing time T.
+
+    Below a rise of ``step_up_min`` (and always when it is 0) this is the paper's adaptive
+    midpoint at T/2 (Section V-B-1). Stepping up by more, three waypoints: the foot rises to
+    ``step_up_height`` over the higher end straight above where it lifted off (at
+    ``lift_tau``), crosses above the halfway point at ``step_up_clearance`` over the higher end
+    (T/2), and is ``step_up_height`` straight above the target at ``approach_tau``. A step
+    between the two ends can be anywhere from just ahead of the toe at lift-off to just
+    behind the heel at touchdown (the footholds leave only a margin beyond the foot), so the
+    foot must rise before it moves forward and stop moving forward before it descends. The
+    paper's midpoint leans back along n_p, which clears the toe but brings the foot down
+    diagonally onto the step's nosing (measured in MuJoCo on 15 cm stairs: the heel lands on
+    the edge, 7 cm short of the target); a midpoint above halfway at c clears the heel but
+    not the toe (the toe hits the next riser, measured), and c = 15 cm over a 30 cm rise
+    folds the swing knee to its limit (measured).
+    """
+    dz = float(p_des[2] - p0[2])
+    if step_up_min <= 0.0 or dz < step_up_min:
+        return [(0.5, swing_midpoint(p0, p_des, clearance))]
+    a, b = p0.tolist(), p_des.tolist()
+    top = max(a[2], b[2])
+    return [
+        (lift_tau, [a[0], a[1], top + step_up_height]),
+        (0.5, [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), top + step_up_clearance]),
+        (approach_tau, [b[0], b[1], top + step_up_height]),
+    ]
+
+
 class SwingFootTrajectory:
     """Swing-foot polynomial from the QP (23), re-solved every tick.
 
@@ -139,18 +170,29 @@ class SwingFootTrajectory:
     minimises the integral of the squared acceleration subject to continuity of position,
     velocity and acceleration with the previous tick's polynomial at the previous tick's time,
     the end conditions p(T) = p_des, p'(T) = p''(T) = 0, and p(T/2) = p_mid (dropped from
-    0.1 T before mid-swing on, where it would nearly repeat the continuity row). Its
-    equality-constrained KKT system is solved in closed form, one factorisation for 3 axes.
+    0.1 T before mid-swing on, where it would nearly repeat the continuity row). Stepping up
+    by ``step_up_min`` or more, the waypoints are those of ``swing_waypoints`` (one row each,
+    each dropped likewise 0.1 T before its time). The equality-constrained KKT system is
+    solved in closed form, one factorisation for 3 axes.
     """
 
-    def __init__(self, degree: int = 8, freeze_s: float = 0.02, mid_margin: float = 0.1) -> None:
+    def __init__(self, degree: int = 8, freeze_s: float = 0.02, mid_margin: float = 0.1,
+                 step_up_min: float = 0.0, step_up_clearance: float = 0.06,
+                 step_up_height: float = 0.04, lift_tau: float = 0.25,
+                 approach_tau: float = 0.8) -> None:
         self.deg = degree
         nc = degree + 1
         self.nc = nc
+        self.step_up_min = step_up_min
+        self.step_up_clearance = step_up_clearance
+        self.step_up_height = step_up_height
+        self.lift_tau = lift_tau
+        self.approach_tau = approach_tau
         Q = np.zeros((nc, nc))
         for a in range(2, nc):
             for b in range(2, nc):
                 Q[a, b] = a * (a - 1) * b * (b - 1) / (a + b - 3)  # int of tau^(a-2) tau^(b-2)
+        self._Q2 = 2.0 * Q
         self.coef = np.zeros((nc, 3))
         self.T = 1.0
         self.t_prev = 0.0
@@ -159,22 +201,26 @@ class SwingFootTrajectory:
         self.active = False
         self.freeze_s = freeze_s
         self.mid_margin = mid_margin
-        # KKT templates [2Q A^T; A 0], A = [end rows (3); mid row (0/1); continuity rows (3)];
-        # only the continuity rows change from tick to tick.
-        self._K: dict[bool, np.ndarray] = {}
-        self._rhs: dict[bool, np.ndarray] = {}
-        end = self._basis3(1.0)
-        mid = self._basis3(0.5)[0]
-        for with_mid in (False, True):
-            ne = 7 if with_mid else 6
+        # KKT templates [2Q A^T; A 0], A = [end rows (3); waypoint rows; continuity rows (3)],
+        # one per set of waypoint times; only the continuity rows change from tick to tick.
+        self._K: dict[tuple[float, ...], np.ndarray] = {}
+        self._rhs: dict[tuple[float, ...], np.ndarray] = {}
+
+    def _template(self, taus: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """The KKT matrix and right-hand side for waypoints at ``taus`` (built once each)."""
+        K = self._K.get(taus)
+        if K is None:
+            nc = self.nc
+            ne = 6 + len(taus)
             K = np.zeros((nc + ne, nc + ne))
-            K[:nc, :nc] = 2.0 * Q
-            K[nc : nc + 3, :nc] = end
-            if with_mid:
-                K[nc + 3, :nc] = mid
+            K[:nc, :nc] = self._Q2
+            K[nc : nc + 3, :nc] = self._basis3(1.0)
+            for i, tau in enumerate(taus):
+                K[nc + 3 + i, :nc] = self._basis3(tau)[0]
             K[:nc, nc:] = K[nc:, :nc].T
-            self._K[with_mid] = K
-            self._rhs[with_mid] = np.zeros((nc + ne, 3))
+            self._K[taus] = K
+            self._rhs[taus] = np.zeros((nc + ne, 3))
+        return K, self._rhs[taus]
 
     def _basis3(self, tau: float) -> np.ndarray:
         """Rows [p, dp/dtau, d2p/dtau2] of the monomials 1, tau, ..., tau^deg at tau."""
@@ -216,10 +262,14 @@ class SwingFootTrajectory:
             tau_prev = min(max((self.t_prev - self.liftoff) / self.T, 0.0), 1.0)
             prev = self._basis3(tau_prev) @ self.coef  # old polynomial, old T: d/dtau_old
             tau_k = (self.t_prev - self.liftoff) / T_new
-            with_mid = tau_k < 0.5 - self.mid_margin  # near mid-swing it would repeat p(tau_k)
-            K, rhs = self._K[with_mid], self._rhs[with_mid]
+            # a waypoint near the current time would nearly repeat the continuity row p(tau_k)
+            wps = [w for w in swing_waypoints(self.p0, p_des, clearance, self.step_up_min,
+                                              self.step_up_clearance, self.step_up_height,
+                                              self.lift_tau, self.approach_tau)
+                   if tau_k < w[0] - self.mid_margin]
+            K, rhs = self._template(tuple(w[0] for w in wps))
             nc = self.nc
-            r = nc + (4 if with_mid else 3)
+            r = nc + 3 + len(wps)
             B = self._basis3(tau_k)
             K[r : r + 3, :nc] = B
             K[:nc, r : r + 3] = B.T
@@ -228,8 +278,8 @@ class SwingFootTrajectory:
             rhs[r + 1] = prev[1] * s
             rhs[r + 2] = prev[2] * (s * s)
             rhs[nc] = p_des  # p(T) = p_des; p'(T) = p''(T) = 0 stay zero
-            if with_mid:
-                rhs[nc + 3] = swing_midpoint(self.p0, p_des, clearance)
+            for i, (_, point) in enumerate(wps):
+                rhs[nc + 3 + i] = point
             _, _, sol, info = _gesv(K, rhs)
             if info == 0:
                 self.coef[:] = sol[:nc]
@@ -255,7 +305,12 @@ class WalkingController:
         self.p = params
         self.pelvis = PelvisOrientationTask(nv)
         self.plane = ComHeightPlane(params)
-        self.swing = SwingFootTrajectory(params.swing_degree)
+        self.swing = SwingFootTrajectory(params.swing_degree,
+                                         step_up_min=params.swing_step_up_min,
+                                         step_up_clearance=params.swing_step_up_clearance,
+                                         step_up_height=params.swing_step_up_height,
+                                         lift_tau=params.swing_lift_tau,
+                                         approach_tau=params.swing_approach_tau)
         self._swing_key: tuple[int, float] | None = None
         self._zero3 = [0.0, 0.0, 0.0]
         self.phase: GaitPhase | None = None
@@ -329,8 +384,11 @@ class WalkingController:
         pos, vel, acc = self.swing.evaluate(t)
         add_foot_position_task(rows, log, m, sw, p.swing_foot, pos.tolist(), vel.tolist(),
                                acc.tolist())
-        # Swing toe: foot at atan(k_x) to the horizontal; swing hip yaw at zero (Section V-C).
-        add_foot_pitch_task(rows, log, m, sw, p.toe, math.atan(kx))
+        # Swing toe: foot at atan(k_x) to the horizontal (Section V-C), or level ("level": on
+        # level footholds, where atan(k_x) would land the heel first, L/2 sin(atan k_x) ~ 3 cm
+        # below the foot's centre on 15 cm stairs); swing hip yaw at zero (Section V-C).
+        toe = math.atan(kx) if p.swing_toe == "plane" else 0.0
+        add_foot_pitch_task(rows, log, m, sw, p.toe, toe)
         add_joint_task(rows, log, m, q, v, int(m.hip_yaw_qpos[sw]), int(m.hip_yaw_dof[sw]),
                        p.hip_yaw, 0.0, "swing_hip_yaw")
 
@@ -357,4 +415,5 @@ __all__ = [
     "SwingFootTrajectory",
     "WalkingController",
     "swing_midpoint",
+    "swing_waypoints",
 ]
