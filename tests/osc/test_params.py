@@ -16,7 +16,7 @@ def test_default_gains_file_holds_table_vii_values():
     p = OscParams.from_yaml()
     w = p.walking
     np.testing.assert_allclose(w.swing_foot.kp, [400, 400, 400])
-    np.testing.assert_allclose(w.swing_foot.kd, [20, 20, 25])
+    np.testing.assert_allclose(w.swing_foot.kd, [35, 35, 25])  # x, y: not Table VII (20)
     np.testing.assert_allclose(w.pelvis.w, [2, 4, 0.02])
     np.testing.assert_allclose(w.com.kp, [0, 0, 80])
     assert w.toe.kp[0] == 1500 and w.hip_yaw.kp[0] == 100
