@@ -14,7 +14,11 @@ those binaries fixed. Two strategies, both exact:
   A second, exact bound is computed lazily, once per first-step foothold: the QP with only
   p_1 fixed (later footsteps relaxed to the box around all footholds); it prunes every leaf
   sharing that foothold. Vertex tests drop assignments that cannot meet the crossover or
-  trust-region constraints.
+  trust-region constraints. When a search is not settled after a few QPs, a third bound per
+  leaf that sees the soft CoM limits (their penalty's lower bound over the leaf's region,
+  added to the quadratic bound around the unpenalised optimum) re-sorts the remaining leaves:
+  the quadratic bound has none of the penalty's curvature, so it ranked leaves whose footholds
+  push the CoM off its limits (objective 1e4) among the good ones (1e2).
 * `branch_and_bound` (longer horizons, when M^N is large): best-first over partial
   assignments, unassigned footsteps relaxed to the bounding box of all footholds (a valid
   relaxation of (20)), children ordered and pre-pruned by the same per-foothold bounds.
@@ -76,6 +80,9 @@ class QpEngine:
         self._solvers: dict[int, piqp.DenseSolver] = {}
         self.active = np.zeros(0, dtype=int)
         self._form_fresh = True
+        #: the first QP of this load solved with no soft limit at all (set by `solve`): the
+        #: minimum of (15a) without the soft-limit penalty, for the search's penalty bounds
+        self.unpenalised: QpResult | None = None
 
     # -- per solve ------------------------------------------------------------------------
     def load(self, qp: CondensedQp, k_rows: int) -> None:
@@ -95,6 +102,7 @@ class QpEngine:
         self.Gs[:n] = qp.Gx
         self.hs[:n] = qp.hx
         self._set_active(np.zeros(0, dtype=int))
+        self.unpenalised = None
 
     def _set_active(self, active: np.ndarray) -> None:
         """Build the QP form with slacks for the soft-limit components in `active`."""
@@ -144,6 +152,8 @@ class QpEngine:
             if res.status != SOLVED:
                 return res
             z = res.z[: self.nz]
+            if self.unpenalised is None and len(self.active) == 0:
+                self.unpenalised = QpResult(SOLVED, res.objective + qp.const, z)
             viol = np.abs(qp.Cs @ z + qp.cs) - qp.lim
             viol[self.active] = -1.0
             if not np.any(viol > 1e-9):
@@ -225,6 +235,8 @@ class ExactSearch:
         # how many leading steps get the lazy per-foothold bound: later steps' bounds relax the
         # earlier footsteps to a box and rarely prune
         self.step_bound_depth = 1
+        # QPs after which an enumeration adds the soft-limit-aware leaf bounds (~0.3 ms)
+        self.penalty_bound_after = 3
         self._chol: np.ndarray | None = None
 
     def _gap(self, best: float) -> float:
@@ -275,6 +287,7 @@ class ExactSearch:
         else:
             f_b = base.objective
             lb_step, lb_sum = self._foothold_bounds(qp, base.z, lf)
+        plain = eng.unpenalised if base.status == SOLVED else None
         ok_first, ok_pairs = self._feasible_masks(qp, lf)
         mode = self.mode
         if mode == "auto":
@@ -282,8 +295,12 @@ class ExactSearch:
         if incumbent is not None and (len(incumbent) != n or max(incumbent) >= m):
             incumbent = None
         if mode == "enumerate":
+            pen_bounds = None
+            if plain is not None:
+                def pen_bounds() -> np.ndarray | None:
+                    return self._penalty_leaf_bounds(qp, lf, plain)
             return self._enumerate(lf, f_b, lb_step, lb_sum, ok_first, ok_pairs, incumbent,
-                                   deadline, nodes)
+                                   deadline, nodes, pen_bounds)
         return self._branch_and_bound(lf, f_b, lb_step, ok_first, ok_pairs, incumbent, deadline,
                                       nodes)
 
@@ -342,6 +359,48 @@ class ExactSearch:
         safety = 0.5 * (1.0 - 1e-7)
         return safety * d2[:n], (safety * max(gamma, 0.0)) * d2[n:]
 
+    def _penalty_leaf_bounds(self, qp: CondensedQp, lf: LocalFootholds,
+                             plain: QpResult) -> np.ndarray | None:
+        """A second bound per leaf, (M,)*N, that sees the soft CoM limits.
+
+        f = f_0 + pen, with f_0 (15a) without the soft limits and pen their penalty. Around
+        the minimiser z_0 of f_0 (``plain``), f_0 >= f_0(z_0) + the quadratic foothold bounds
+        (as at the root); and over a leaf's region (tau, u in their bounds, p_k in its
+        polygon), each row of Cs z + cs lies in an interval found from the polygon vertices,
+        so pen >= w * sum of each interval's squared distance outside [-lim, lim]. The two
+        bounds add. The root bound sees none of the penalty's curvature, which is what
+        makes a leaf whose footholds force the CoM off its limits cost 1e4 where the root
+        bound says 1e2."""
+        n, m = self.engine.N, lf.count
+        lo_t, hi_t = qp.z_lo[:2], qp.z_hi[:2]
+        if not (np.all(np.isfinite(lo_t)) and np.all(np.isfinite(hi_t))):
+            return None
+        cs = qp.Cs
+        # tau and u: per row, the extreme values of their part of Cs z
+        a = cs[:, :2]
+        lo = qp.cs + np.minimum(a * lo_t, a * hi_t).sum(axis=1)
+        hi = qp.cs + np.maximum(a * lo_t, a * hi_t).sum(axis=1)
+        shape = (m,) * n
+        lo_leaf = np.broadcast_to(lo, (*shape, len(lo))).copy()
+        hi_leaf = lo_leaf + (hi - lo)
+        for k in range(n):
+            vals = lf.V @ cs[:, 2 + 2 * k: 4 + 2 * k].T  # (M, K, R): each vertex, each row
+            view = [1] * n + [cs.shape[0]]
+            view[k] = m
+            lo_leaf += vals.min(axis=1).reshape(view)
+            hi_leaf += vals.max(axis=1).reshape(view)
+        out = np.maximum(np.maximum(lo_leaf - qp.lim, -qp.lim - hi_leaf), 0.0)
+        pen = qp.w_soft * np.einsum("...r,...r->...", out, out)
+        q_step, q_sum = self._foothold_bounds(qp, plain.z, lf)
+        q_max = np.zeros(shape)
+        q_add = np.zeros(shape)
+        for k in range(n):
+            view = [1] * n
+            view[k] = m
+            q_max = np.maximum(q_max, q_step[k].reshape(view))
+            q_add = q_add + q_sum[k].reshape(view)
+        return plain.objective + np.maximum(q_max, q_add) + (1.0 - 1e-9) * pen
+
     def _later_step_bounds(self, z: np.ndarray, lf: LocalFootholds) -> np.ndarray | None:
         """Bounds below a node whose first footstep is fixed, from its QP solution z: the same
         quadratic argument as at the root, centred at z, for steps 2..N. Returns (N-1, M) with
@@ -389,7 +448,11 @@ class ExactSearch:
 
     # -- strategies -------------------------------------------------------------------------
     def _enumerate(self, lf, f_b, lb_step, lb_sum, ok_first, ok_pairs, incumbent, deadline,
-                   nodes) -> SearchResult:
+                   nodes, pen_bounds=None) -> SearchResult:
+        """Leaves in order of their lower bound, pruned by the lazy per-step bounds. Once
+        ``penalty_bound_after`` QPs have not settled it, ``pen_bounds()`` (the soft-limit-aware
+        leaf bounds) raises the remaining leaves' bounds and they are re-sorted: easy solves
+        do not pay for it, hard ones stop exploring leaves the CoM limits make expensive."""
         n, m = self.engine.N, lf.count
         shape = (m,) * n
         lb_max = np.zeros(shape)
@@ -409,6 +472,7 @@ class ExactSearch:
                 feasible &= ok_pairs[k - 1].reshape(pview)
         lb = np.where(feasible, f_b + np.maximum(lb_max, lb_add), np.inf).ravel()
         order = np.argsort(lb, kind="stable")
+        pen_at = nodes + self.penalty_bound_after
         best, best_a, best_z = np.inf, None, None
         unresolved = False
         if incumbent is not None:
@@ -428,7 +492,19 @@ class ExactSearch:
         below: list[np.ndarray | None] = [None] * m
         cutoff = best - self._gap(best)
         proven_lb = np.inf
-        for flat, bound in zip(order.tolist(), lb[order].tolist(), strict=True):
+        pos = 0
+        while pos < len(order):
+            if pen_bounds is not None and nodes >= pen_at:
+                extra = pen_bounds()
+                pen_bounds = None
+                if extra is not None:
+                    lb = np.maximum(lb, extra.ravel())
+                    rest = order[pos:]
+                    order = np.concatenate([order[:pos],
+                                            rest[np.argsort(lb[rest], kind="stable")]])
+            flat = int(order[pos])
+            bound = float(lb[flat])
+            pos += 1
             if bound == np.inf or bound >= cutoff:
                 proven_lb = bound
                 break
