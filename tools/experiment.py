@@ -7,9 +7,9 @@ how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth
 ground-truth footholds from the sim, or with ``--perception`` the footholds of S3.
 
 Reported per trial, from the sim's ground truth: distance walked, mean forward speed against the
-command, falls (pelvis below 0.6 m), footsteps (touchdowns) and footsteps outside every
-foothold, and whether the trial succeeded (no fall, speed within 15% of the command, no
-footstep outside a foothold).
+command, falls (pelvis below 0.6 m over the terrain under it), footsteps (touchdowns) and
+footsteps outside every foothold, and whether the trial succeeded (no fall, speed within 15% of
+the command, no footstep outside a foothold).
 """
 
 from __future__ import annotations
@@ -99,9 +99,13 @@ class Operator(Node):
 class Judge:
     """Watches GROUND_TRUTH: falls, distance, speed and where each foot touches down."""
 
-    def __init__(self, footholds: list[Any], walk_start_s: float) -> None:
+    def __init__(self, footholds: list[Any], walk_start_s: float,
+                 ground: Callable[[float, float], float] | None = None) -> None:
         self.footholds = footholds
         self.walk_start_s = walk_start_s
+        #: height of the terrain under (x, y): a fall is the pelvis below FALL_HEIGHT_M over
+        #: it (on stairs a robot lying on the landing has its pelvis above 0.6 m)
+        self.ground = ground if ground is not None else (lambda x, y: 0.0)
         self.x0: float | None = None
         self.x_last = 0.0
         self.t_last = 0.0
@@ -113,7 +117,7 @@ class Judge:
 
     def __call__(self, t_us: int, gt: Any) -> None:
         t = gt.header.utime * 1e-6
-        z = gt.q[2]
+        z = gt.q[2] - self.ground(gt.q[0], gt.q[1])
         self.min_z = min(self.min_z, z)
         if z < FALL_HEIGHT_M and self.fall_t is None:
             self.fall_t = t
@@ -178,18 +182,38 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
     return prof_path, launch
 
 
+def terrain_height(terrain: Any) -> Callable[[float, float], float]:
+    """Height of ``terrain`` (a ``sim.terrain.Terrain``) under (x, y): the highest box top
+    there, else the ground plane (-inf over a pit)."""
+    boxes = [(b.center[0], b.center[1], math.cos(b.yaw), math.sin(b.yaw), 0.5 * b.size[0],
+              0.5 * b.size[1], b.top_z) for b in terrain.boxes]
+    below = terrain.ground_z if terrain.ground_z is not None else -math.inf
+
+    def height(x: float, y: float) -> float:
+        z = below
+        for cx, cy, c, s, hx, hy, top in boxes:
+            dx, dy = x - cx, y - cy
+            if abs(c * dx + s * dy) <= hx and abs(-s * dx + c * dy) <= hy and top > z:
+                z = top
+        return z
+
+    return height
+
+
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
-             work: Path, mode: str | None = None) -> tuple[Path, Profile, list[str], list[Any]]:
+             work: Path, mode: str | None = None
+             ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float]]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
-    processes, the terrain's ground-truth footholds for the judge)."""
+    processes, the terrain's ground-truth footholds for the judge, its height)."""
     from sim import terrain as terrain_mod
 
     terrain = _terrain_file(name, dmin, seed, work)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
     # the foot that the controller aims within
-    footholds = list(terrain_mod.load_terrain(terrain).landing_surfaces)
-    return prof_path, load_profile(prof_path), launch, footholds
+    ter = terrain_mod.load_terrain(terrain)
+    footholds = list(ter.landing_surfaces)
+    return prof_path, load_profile(prof_path), launch, footholds, terrain_height(ter)
 
 
 def run_trial(
@@ -207,8 +231,8 @@ def run_trial(
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        _, profile, launch, footholds = _prepare(base_profile, name, dmin, seed, perception,
-                                                 work)
+        _, profile, launch, footholds, ground = _prepare(base_profile, name, dmin, seed,
+                                                         perception, work)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
@@ -218,7 +242,7 @@ def run_trial(
                 outputs={"command": profile.channels["command"].name},
             )
         )
-        judge = Judge(footholds, walk_start_s=0.0)
+        judge = Judge(footholds, walk_start_s=0.0, ground=ground)
         h.tap(gt_channel, judge)
         if setup is not None:
             setup(h)
@@ -250,11 +274,11 @@ def run_live_trial(
         work = Path(tmp)
         logs = log_dir if log_dir is not None else work / "logs"
         logs.mkdir(parents=True, exist_ok=True)
-        prof_path, profile, launch, footholds = _prepare(base_profile, name, dmin, seed,
-                                                         perception, work, mode)
+        prof_path, profile, launch, footholds, ground = _prepare(base_profile, name, dmin,
+                                                                 seed, perception, work, mode)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
-        judge = Judge(footholds, math.inf)
+        judge = Judge(footholds, math.inf, ground)
         operator = Operator(vx)
         bus = Bus(profile.lcm_url, source="operator")
         newest: list[Any] = [None]

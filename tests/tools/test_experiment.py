@@ -56,3 +56,19 @@ def test_short_flat_walk_in_the_harness_keeps_up_with_the_command():
     # T_ss + T_ds = 0.4 s per step: about 15 steps in 6 s (the first starts after 0.1 s)
     assert 12 <= trial.footsteps <= 16, trial.footsteps
     assert trial.success
+
+
+def test_judge_measures_the_pelvis_over_the_terrain_under_it():
+    """On stairs a robot lying on the landing keeps its pelvis above 0.6 m: still a fall."""
+    from sim.terrain import load_terrain
+    from tools.experiment import terrain_height
+
+    ground = terrain_height(load_terrain(HW_CONFIG_DIR / "terrains" / "stairs.yaml"))
+    assert ground(0.0, 0.0) == 0.0 and np.isclose(ground(0.7, 0.0), 0.15)
+    assert np.isclose(ground(3.0, 0.0), 0.9)  # the landing
+    judge = Judge([], walk_start_s=0.0, ground=ground)
+    feet = [(3.0, 0.1, 0.9), (3.0, -0.1, 0.9)]
+    judge(0, _gt(0.0, 3.0, 1.85, (True, True), feet))  # standing on the landing
+    assert judge.fall_t is None
+    judge(0, _gt(0.5, 3.0, 1.2, (False, False), feet))  # lying on it
+    assert judge.fall_t == 0.5
