@@ -35,10 +35,11 @@ import math
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import piqp
 
-from processes.mpfc.footholds import LocalFootholds, edge_dist_sq
+from processes.mpfc.footholds import LocalFootholds
 from processes.mpfc.problem import CondensedQp
 
 SOLVED = "solved"
@@ -154,13 +155,20 @@ class QpEngine:
             z = res.z[: self.nz]
             if self.unpenalised is None and len(self.active) == 0:
                 self.unpenalised = QpResult(SOLVED, res.objective + qp.const, z)
-            viol = np.abs(qp.Cs @ z + qp.cs) - qp.lim
-            viol[self.active] = -1.0
-            if not np.any(viol > 1e-9):
+            viol = qp.Cs @ z
+            viol += qp.cs
+            np.abs(viol, out=viol)
+            viol -= qp.lim
+            if len(self.active):
+                viol[self.active] = -1.0
+            over = viol > 1e-9
+            if not over.any():
                 # piqp's objective already holds w s'^2 for the active limits, which at the
                 # optimum is their penalty; the dropped ones contribute nothing
-                return QpResult(SOLVED, res.objective + qp.const, z)
-            self._set_active(np.union1d(self.active, np.flatnonzero(viol > 1e-9)))
+                res.objective += qp.const
+                res.z = z
+                return res
+            self._set_active(np.union1d(self.active, np.flatnonzero(over)))
 
     def _settings(self, s: piqp.DenseSolver, attempt: int) -> None:
         st = s.settings
@@ -237,7 +245,13 @@ class ExactSearch:
         self.step_bound_depth = 1
         # QPs after which an enumeration adds the soft-limit-aware leaf bounds (~0.3 ms)
         self.penalty_bound_after = 3
+        # compile (or load from numba's on-disk cache) the distance kernel now, not mid-solve
+        _metric_dist_sq(np.zeros((1, 2)), np.eye(2)[None], np.zeros((1, 3, 2)),
+                        np.zeros((1, 3, 2)), np.zeros((1, 4, 2)), np.zeros((1, 4)))
+        _penalty_of_leaves(np.zeros(1), np.zeros(1), np.zeros((1, 1, 1)), np.zeros((1, 1, 1)),
+                           np.ones(1), 1.0)
         self._chol: np.ndarray | None = None
+        self._gamma = 0.0
 
     def _gap(self, best: float) -> float:
         """Optimality tolerance around the incumbent value (0 while there is none)."""
@@ -273,7 +287,7 @@ class ExactSearch:
         if m == 0:
             return SearchResult("infeasible", None, None, np.inf, 0, np.inf)
         self._prepare(qp, lf)
-        self._chol = None  # metric factors of this solve's Hessian, set by _foothold_bounds
+        self._metric_factors(qp)
         for step in range(n):
             eng.set_rows(step, None, None)
         nodes = 1
@@ -286,7 +300,7 @@ class ExactSearch:
             f_b = -np.inf
         else:
             f_b = base.objective
-            lb_step, lb_sum = self._foothold_bounds(qp, base.z, lf)
+            lb_step, lb_sum = self._foothold_bounds(base.z, lf)
         plain = eng.unpenalised if base.status == SOLVED else None
         ok_first, ok_pairs = self._feasible_masks(qp, lf)
         mode = self.mode
@@ -305,25 +319,19 @@ class ExactSearch:
                                       nodes)
 
     # -- bounds -----------------------------------------------------------------------------
-    def _foothold_bounds(
-        self, qp: CondensedQp, z_b: np.ndarray, lf: LocalFootholds
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Per-step, per-foothold bounds on f - f_b, all footholds at once.
-
-        D[k, i] = min over P_i of 0.5 dp' S_k dp (S_k: Schur complement of the footstep
-        Hessian S onto step k, dp = p_k - p_k(z_b)); G[k, i] = gamma * the same with the
-        block S_kk, where S >= gamma blockdiag(S_kk). A leaf's bound is
-        f_b + max(max_k D[k, i_k], sum_k G[k, i_k]).
-        """
-        n, m = self.engine.N, lf.count
+    def _metric_factors(self, qp: CondensedQp) -> None:
+        """Cholesky factors of the footstep metrics of this solve's Hessian, once per solve:
+        ``self._chol`` (2N, 2, 2): the Schur complements S_k of the footstep Hessian S onto
+        each step, then the blocks S_kk; ``self._gamma`` with S >= gamma blockdiag(S_kk).
+        ``self._chol`` is None when S is not positive definite (then no bound prunes)."""
+        n = self.engine.N
+        self._chol, self._gamma = None, 0.0
         pm = qp.P
         s_full = pm[2:, 2:] - pm[2:, :2] @ np.linalg.inv(pm[:2, :2]) @ pm[:2, 2:]
-        pb = z_b[2:].reshape(n, 2)
         if n == 2:  # the usual case: 2x2 algebra in plain floats (cheaper than numpy calls)
             chol_l, gamma = _bounds_algebra_n2(s_full.tolist())
             if chol_l is None:
-                self._chol = None
-                return np.zeros((n, m)), np.zeros((n, m))
+                return
             chol = np.array(chol_l)
         else:
             s_full = 0.5 * (s_full + s_full.T)
@@ -339,25 +347,32 @@ class ExactSearch:
             try:
                 chol = np.linalg.cholesky(0.5 * (mats + mats.transpose(0, 2, 1)))
             except np.linalg.LinAlgError:
-                self._chol = None
-                return np.zeros((n, m)), np.zeros((n, m))
+                return
             tmat = np.zeros_like(s_full)
             for k in range(n):
                 tmat[2 * k: 2 * k + 2, 2 * k: 2 * k + 2] = np.linalg.inv(chol[n + k])
             gamma = float(np.linalg.eigvalsh(tmat @ s_full @ tmat.T)[0])
-        self._chol = chol
-        # metric distance = Euclidean distance after mapping every point by L' (S = L L')
-        cb = chol[:, None]
-        d2 = edge_dist_sq(np.concatenate([pb, pb])[:, None, None, :] @ cb, lf.V @ cb,
-                          lf.Ed @ cb)
-        inside = np.all(lf.F @ pb.T[None] <= lf.c[..., None] + 1e-12, axis=1).T
-        d2[:n][inside] = 0.0
-        d2[n:][inside] = 0.0
-        if not (np.isfinite(gamma) and np.all(np.isfinite(d2))):
-            self._chol = None
+        if np.isfinite(gamma) and np.isfinite(chol).all():
+            self._chol, self._gamma = chol, gamma
+
+    def _foothold_bounds(self, z_b: np.ndarray, lf: LocalFootholds
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Per-step, per-foothold bounds on f - f_b, all footholds at once.
+
+        D[k, i] = min over P_i of 0.5 dp' S_k dp (S_k: Schur complement of the footstep
+        Hessian S onto step k, dp = p_k - p_k(z_b)); G[k, i] = gamma * the same with the
+        block S_kk, where S >= gamma blockdiag(S_kk). A leaf's bound is
+        f_b + max(max_k D[k, i_k], sum_k G[k, i_k]). Zero (no pruning) without factors.
+        """
+        n, m = self.engine.N, lf.count
+        if self._chol is None:
+            return np.zeros((n, m)), np.zeros((n, m))
+        pb = z_b[2:].reshape(n, 2)
+        d2 = _metric_dist_sq(np.concatenate([pb, pb]), self._chol, lf.V, lf.Ed, lf.F, lf.c)
+        if not np.isfinite(d2).all():
             return np.zeros((n, m)), np.zeros((n, m))
         safety = 0.5 * (1.0 - 1e-7)
-        return safety * d2[:n], (safety * max(gamma, 0.0)) * d2[n:]
+        return safety * d2[:n], (safety * max(self._gamma, 0.0)) * d2[n:]
 
     def _penalty_leaf_bounds(self, qp: CondensedQp, lf: LocalFootholds,
                              plain: QpResult) -> np.ndarray | None:
@@ -380,18 +395,12 @@ class ExactSearch:
         a = cs[:, :2]
         lo = qp.cs + np.minimum(a * lo_t, a * hi_t).sum(axis=1)
         hi = qp.cs + np.maximum(a * lo_t, a * hi_t).sum(axis=1)
+        # each step's footstep: per foothold and row, the extremes over its vertices
+        vals = np.stack([lf.V @ cs[:, 2 + 2 * k: 4 + 2 * k].T for k in range(n)])  # (N,M,K,R)
         shape = (m,) * n
-        lo_leaf = np.broadcast_to(lo, (*shape, len(lo))).copy()
-        hi_leaf = lo_leaf + (hi - lo)
-        for k in range(n):
-            vals = lf.V @ cs[:, 2 + 2 * k: 4 + 2 * k].T  # (M, K, R): each vertex, each row
-            view = [1] * n + [cs.shape[0]]
-            view[k] = m
-            lo_leaf += vals.min(axis=1).reshape(view)
-            hi_leaf += vals.max(axis=1).reshape(view)
-        out = np.maximum(np.maximum(lo_leaf - qp.lim, -qp.lim - hi_leaf), 0.0)
-        pen = qp.w_soft * np.einsum("...r,...r->...", out, out)
-        q_step, q_sum = self._foothold_bounds(qp, plain.z, lf)
+        pen = _penalty_of_leaves(lo, hi, vals.min(axis=2), vals.max(axis=2), qp.lim,
+                                 qp.w_soft).reshape(shape)
+        q_step, q_sum = self._foothold_bounds(plain.z, lf)
         q_max = np.zeros(shape)
         q_add = np.zeros(shape)
         for k in range(n):
@@ -409,11 +418,8 @@ class ExactSearch:
         if self._chol is None or n < 2:
             return None
         pts = z[4:].reshape(n - 1, 2)
-        cb = self._chol[1:n, None]
-        d2 = edge_dist_sq(pts[:, None, None, :] @ cb, lf.V @ cb, lf.Ed @ cb)
-        inside = np.all(lf.F @ pts.T[None] <= lf.c[..., None] + 1e-12, axis=1).T
-        d2[inside] = 0.0
-        if not np.all(np.isfinite(d2)):
+        d2 = _metric_dist_sq(pts, self._chol[1:n], lf.V, lf.Ed, lf.F, lf.c)
+        if not np.isfinite(d2).all():
             return None
         return (0.5 * (1.0 - 1e-7)) * d2
 
@@ -646,6 +652,75 @@ class ExactSearch:
         status = "optimal" if best_a is not None else "infeasible"
         return SearchResult(status, best_a, best_z, float(best), nodes, float(best))
 
+
+
+@numba.njit(cache=True, nogil=True)
+def _metric_dist_sq(points: np.ndarray, chol: np.ndarray, verts: np.ndarray,
+                    edges: np.ndarray, f: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(P, M) squared distance from each point to each foothold polygon in the point's metric
+    S = L L' (``chol[p]`` = L): min over the polygon of (x - p)' S (x - p), zero inside.
+
+    Mapping by L' turns the metric distance into the Euclidean one, so it is the distance to
+    the nearest boundary segment after mapping (a polygon is convex: outside, the nearest
+    point is on the boundary). ``f``/``c`` are the polygons' half-planes (padded rows
+    0 <= inf); ``verts``/``edges`` padded as ``LocalFootholds`` pads them."""
+    n_p, m, kv = points.shape[0], verts.shape[0], verts.shape[1]
+    out = np.empty((n_p, m))
+    for a in range(n_p):
+        px, py = points[a, 0], points[a, 1]
+        l00, l01, l10, l11 = chol[a, 0, 0], chol[a, 0, 1], chol[a, 1, 0], chol[a, 1, 1]
+        qx, qy = px * l00 + py * l10, px * l01 + py * l11  # p' L
+        for i in range(m):
+            inside = True
+            for r in range(f.shape[1]):
+                if f[i, r, 0] * px + f[i, r, 1] * py > c[i, r] + 1e-12:
+                    inside = False
+                    break
+            if inside:
+                out[a, i] = 0.0
+                continue
+            best = np.inf
+            for k in range(kv):
+                vx, vy = verts[i, k, 0], verts[i, k, 1]
+                ex, ey = edges[i, k, 0], edges[i, k, 1]
+                wx = qx - (vx * l00 + vy * l10)
+                wy = qy - (vx * l01 + vy * l11)
+                mx, my = ex * l00 + ey * l10, ex * l01 + ey * l11
+                ee = mx * mx + my * my
+                if ee > 0.0:
+                    t = (wx * mx + wy * my) / ee
+                    t = min(max(t, 0.0), 1.0)
+                    wx -= t * mx
+                    wy -= t * my
+                d = wx * wx + wy * wy
+                if d < best:
+                    best = d
+            out[a, i] = best
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _penalty_of_leaves(lo0: np.ndarray, hi0: np.ndarray, lo_k: np.ndarray, hi_k: np.ndarray,
+                       lim: np.ndarray, w: float) -> np.ndarray:
+    """Lower bound of the soft-limit penalty of every leaf, flat in row-major order (step 1
+    slowest): each row's interval is the sum of the tau/u part [lo0, hi0] and each step's
+    foothold part [lo_k[k, i_k], hi_k[k, i_k]]; its squared distance outside [-lim, lim]."""
+    n, m, r = lo_k.shape
+    total = m**n
+    out = np.empty(total)
+    for flat in range(total):
+        acc = 0.0
+        for row in range(r):
+            lo, hi, rem = lo0[row], hi0[row], flat
+            for k in range(n - 1, -1, -1):
+                i = rem % m
+                rem //= m
+                lo += lo_k[k, i, row]
+                hi += hi_k[k, i, row]
+            d = max(lo - lim[row], -lim[row] - hi, 0.0)
+            acc += d * d
+        out[flat] = w * acc
+    return out
 
 
 def _bounds_algebra_n2(
