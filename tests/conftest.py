@@ -23,9 +23,12 @@ if not os.environ.get("MENAGERIE_ROOT"):
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
-    """Compile the state estimator's numba kernels into their on-disk cache once, up front:
-    on a fresh clone the first compile takes ~10 s, which would otherwise land inside the
-    start-up timeout of whichever test first launches an estimator process."""
+    """Compile the numba kernels (state estimator, MPFC search) into their on-disk cache once,
+    up front: on a fresh clone the first compile takes ~10 s, which would otherwise land
+    inside the start-up timeout of whichever test first launches one of those processes."""
+    from processes.mpfc.search import ExactSearch, QpEngine
+
+    ExactSearch(QpEngine(2))
     if os.environ.get("MENAGERIE_ROOT"):
         from processes.state_estimator.estimator import CassieEstimator
 
