@@ -147,7 +147,16 @@ class Judge:
         )
 
 
-def _terrain_file(name: str, dmin: float | None, seed: int, work: Path) -> str:
+def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
+                  depth: float | None = None) -> str:
+    if name == "stairs" and depth is not None:
+        # hw_config/terrains/stairs.yaml with another tread depth (Fig. 11: 27 cm with ground
+        # truth, 40 cm with perception)
+        doc = yaml.safe_load((HW_CONFIG_DIR / "terrains" / "stairs.yaml").read_text())
+        doc["params"]["depth"] = float(depth)
+        path = work / "stairs.yaml"
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        return str(path)
     if name == "stones":
         path = work / "stones.yaml"
         path.write_text(
@@ -201,13 +210,13 @@ def terrain_height(terrain: Any) -> Callable[[float, float], float]:
 
 
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
-             work: Path, mode: str | None = None
+             work: Path, mode: str | None = None, depth: float | None = None
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float]]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
     processes, the terrain's ground-truth footholds for the judge, its height)."""
     from sim import terrain as terrain_mod
 
-    terrain = _terrain_file(name, dmin, seed, work)
+    terrain = _terrain_file(name, dmin, seed, work, depth)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
     # the foot that the controller aims within
@@ -225,14 +234,16 @@ def run_trial(
     vx: float,
     base_profile: Path,
     setup: Callable[[Harness], None] | None = None,
+    depth: float | None = None,
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
-    (or instrument) the harness's nodes before the run."""
+    (or instrument) the harness's nodes before the run; ``depth`` is the stairs' tread depth
+    (None: hw_config/terrains/stairs.yaml's)."""
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         _, profile, launch, footholds, ground = _prepare(base_profile, name, dmin, seed,
-                                                         perception, work)
+                                                         perception, work, depth=depth)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
@@ -263,6 +274,7 @@ def run_live_trial(
     mode: str,
     base_profile: Path = HW_CONFIG_DIR / "sim.yaml",
     log_dir: Path | None = None,
+    depth: float | None = None,
 ) -> Trial:
     """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
@@ -275,7 +287,8 @@ def run_live_trial(
         logs = log_dir if log_dir is not None else work / "logs"
         logs.mkdir(parents=True, exist_ok=True)
         prof_path, profile, launch, footholds, ground = _prepare(base_profile, name, dmin,
-                                                                 seed, perception, work, mode)
+                                                                 seed, perception, work, mode,
+                                                                 depth)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
         judge = Judge(footholds, math.inf, ground)
@@ -391,6 +404,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="terrain seed (stones)")
     ap.add_argument("--trials", type=int, default=1, help="trials, seeds seed..seed+N-1")
     ap.add_argument("--dmin", type=float, default=None, help="stones: minimum side d_min, m")
+    ap.add_argument("--depth", type=float, default=None,
+                    help="stairs: tread depth, m (default 0.27; the paper's perceptive "
+                    "stairs are 0.40)")
     ap.add_argument("--perception", action="store_true", help="S3 footholds, not ground truth")
     ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
     ap.add_argument("--profile", type=Path, default=HW_CONFIG_DIR / "experiment.yaml")
@@ -407,6 +423,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.dmin is not None and args.name != "stones":
         ap.error("--dmin is for the stones experiment")
+    if args.depth is not None and (args.name != "stairs" or not 0.1 <= args.depth <= 2.0):
+        ap.error("--depth is for the stairs experiment, 0.1 to 2.0 m")
     if args.duration <= 0 or args.trials < 1:
         ap.error("--duration must be > 0 and --trials >= 1")
     if args.launch:
@@ -415,13 +433,13 @@ def main(argv: list[str] | None = None) -> int:
         trials = [
             run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                            args.vx, args.launch, base,
-                           args.log_dir / f"trial{i}" if args.log_dir else None)
+                           args.log_dir / f"trial{i}" if args.log_dir else None, args.depth)
             for i in range(args.trials)
         ]
     else:
         trials = [
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
-                      args.vx, args.profile)
+                      args.vx, args.profile, depth=args.depth)
             for i in range(args.trials)
         ]
     for tr in trials:
@@ -447,6 +465,8 @@ def main(argv: list[str] | None = None) -> int:
     }
     if args.dmin is not None:
         figures["dmin_m"] = args.dmin
+    if args.depth is not None:
+        figures["stair_depth_m"] = args.depth
     if args.launch:
         figures["mode"] = args.launch
         figures["description"] = f"{args.name} with cassie launch in {args.launch} mode"

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from lcmtypes import ground_truth_t
 from runtime.config import HW_CONFIG_DIR
 from sim.terrain import Foothold
 from tools.experiment import Judge, run_trial
+from tools.experiment import main as experiment_main
 
 
 def _gt(t: float, x: float, z: float, contact: tuple[bool, bool], feet) -> ground_truth_t:  # type: ignore[no-untyped-def]
@@ -72,3 +74,17 @@ def test_judge_measures_the_pelvis_over_the_terrain_under_it():
     assert judge.fall_t is None
     judge(0, _gt(0.5, 3.0, 1.2, (False, False), feet))  # lying on it
     assert judge.fall_t == 0.5
+
+
+def test_stairs_depth_writes_a_terrain_with_that_tread_depth(tmp_path) -> None:
+    from sim import terrain as terrain_mod
+    from tools.experiment import _terrain_file
+
+    ter = terrain_mod.load_terrain(_terrain_file("stairs", None, 0, tmp_path, depth=0.40))
+    assert ter.params["depth"] == pytest.approx(0.40)
+    tops = sorted(b.top_z for b in ter.boxes)
+    assert tops[0] == pytest.approx(0.15)
+    assert terrain_mod.load_terrain(_terrain_file("stairs", None, 0, tmp_path)).params[
+        "depth"] == pytest.approx(0.27)
+    with pytest.raises(SystemExit):
+        experiment_main(["flat", "--depth", "0.4"])
