@@ -38,6 +38,10 @@ class ElevationMapParams:
     multi_height_noise_m2: float = bounded(9e-7, lo=0.0, hi=1.0, unit="m^2")
     process_noise_m2: float = bounded(0.0, lo=0.0, hi=1.0, unit="m^2 per update")
     drift_patch_px: int = bounded(4, lo=1, hi=32, unit="px")
+    # the ground the robot starts on, from its feet (0: off); see ElevationMap.initialize_submap
+    init_submap_back_m: float = bounded(0.0, lo=0.0, hi=5.0, unit="m")
+    init_submap_front_m: float = bounded(0.0, lo=0.0, hi=5.0, unit="m")
+    init_submap_half_y_m: float = bounded(0.0, lo=0.0, hi=5.0, unit="m")
 
     @property
     def cells(self) -> int:
@@ -152,6 +156,8 @@ class ElevationMap:
         self.variance = np.full(self.shape, np.nan)
         self.time = np.full(self.shape, np.nan)
         self.lowest = np.full(self.shape, np.nan)
+        #: 1 where the height is the initial submap's prior, not a measurement (else 0 or NaN)
+        self.prior = np.zeros(self.shape)
         self._scratch = np.empty(self.shape)
         # centre of cell (0, 0); the map centre starts at the world origin
         self.origin = -0.5 * (n - 1) * self.resolution * np.ones(2)
@@ -187,6 +193,7 @@ class ElevationMap:
         """Forget every measurement."""
         for layer in (self.elevation, self.variance, self.time, self.lowest):
             layer.fill(np.nan)
+        self.prior.fill(0.0)
 
     # -- motion --
     def recenter(self, xy: Sequence[float] | np.ndarray) -> tuple[int, int]:
@@ -200,7 +207,7 @@ class ElevationMap:
         dc, dr = int(shift[0]), int(shift[1])
         if dr == 0 and dc == 0:
             return 0, 0
-        for layer in (self.elevation, self.variance, self.time, self.lowest):
+        for layer in (self.elevation, self.variance, self.time, self.lowest, self.prior):
             _shift_into(layer, dr, dc, self._scratch)
         self.origin = self.origin + np.array([dc, dr]) * res
         return dr, dc
@@ -283,7 +290,10 @@ class ElevationMap:
         varl = self.variance.reshape(-1)
         h = elev[cells]
         v = varl[cells]
-        new = np.isnan(h)
+        prior = self.prior.reshape(-1)
+        # a cell holding only the initial submap's prior takes the measurement as it is
+        new = np.isnan(h) | (prior[cells] == 1.0)
+        prior[cells] = 0.0
         with np.errstate(invalid="ignore"):
             mahal = np.abs(z_m - h) / np.sqrt(v + var_m)
         fuse = ~new & (mahal <= p.mahalanobis_threshold)
@@ -345,6 +355,37 @@ class ElevationMap:
         return "ok" if updated > 0 else "no points in map"
 
     # -- drift correction --
+    def initialize_submap(self, center_xy: Sequence[float] | np.ndarray, z: float,
+                          yaw: float = 0.0) -> int:
+        """Fill the unknown cells of a rectangle around the robot's feet with their height, as
+        the initial submap of Fankhauser's elevation mapping: the camera looks ahead, so the
+        ground the robot starts on is otherwise never seen, and an inpainting of it from far
+        rims (LNV takes the lowest: a pit's floor) would put the robot's own footing in a hole.
+
+        The rectangle reaches ``init_submap_back_m`` behind the feet and
+        ``init_submap_front_m`` ahead of them (along ``yaw``), and ``init_submap_half_y_m`` to
+        either side; ahead it stops where the camera starts to see the ground, so that it never
+        claims ground the camera cannot check (past an edge just ahead, the pit's floor is
+        occluded by the edge). Its cells are marked as a prior, which the first camera
+        measurement of the cell replaces (no Kalman fusion, no Mahalanobis gate), and get half
+        the largest variance. Cells already known keep their values. Returns the number of
+        cells filled."""
+        p = self.params
+        back, front, hy = p.init_submap_back_m, p.init_submap_front_m, p.init_submap_half_y_m
+        c = np.asarray(center_xy, dtype=float).reshape(-1)[:2]
+        if back + front <= 0.0 or hy <= 0.0 or not (np.all(np.isfinite(c)) and np.isfinite(z)):
+            return 0
+        x, y = self.cell_centers()
+        cy, sy = np.cos(yaw), np.sin(yaw)
+        dx, dy = x - c[0], y - c[1]
+        along = cy * dx + sy * dy
+        inside = (along >= -back) & (along <= front) & (np.abs(-sy * dx + cy * dy) <= hy)
+        fill = inside & np.isnan(self.elevation)
+        self.elevation[fill] = z
+        self.variance[fill] = 0.5 * p.max_variance_m2
+        self.prior[fill] = 1.0
+        return int(np.count_nonzero(fill))
+
     def apply_drift_correction(self, contact_point_world: Sequence[float] | np.ndarray
                                ) -> float | None:
         """Shift the whole map so its height at the stance foot equals the foot's height.

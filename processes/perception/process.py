@@ -9,7 +9,9 @@ pose (the laptop's robot state nearest in time) and the camera mount, or from th
 (``camera_pose: frame``, the simulator's true pose); the robot's own legs are cropped with boxes
 around the leg links; the stance foot corrects the map's height drift (Section VII-B); the map
 is re-centred on the robot and published with the frame's ``utime``, so the latency from depth
-frame to footholds can be measured downstream.
+frame to footholds can be measured downstream. The first time both feet are on the ground, the
+unknown cells around them take the feet's height (the initial submap, see
+``ElevationMap.initialize_submap``): the camera never sees the ground the robot starts on.
 """
 
 from __future__ import annotations
@@ -81,6 +83,7 @@ class PerceptionNode(Node):
         self.status_text = "no frame yet"
         self.frames = 0
         self.rejected = 0
+        self.seeded = False  # the initial submap under the feet has been filled
 
     def tick(self, ctx: Any, inbox: Any) -> None:
         frame: depth_frame_t = inbox.trigger()
@@ -119,6 +122,11 @@ class PerceptionNode(Node):
             cam_quat = np.asarray(frame.camera_quat, dtype=float)
         if have_state:
             self.map.recenter(self.kin.com[:2])
+            if not self.seeded and all(state.in_contact):
+                feet = np.asarray(self.kin.foot_points, dtype=float)
+                self.map.initialize_submap(feet[:, :2].mean(axis=0), float(feet[:, 2].mean()),
+                                           self.kin.pelvis_yaw())
+                self.seeded = True
             if self.crop_legs:
                 boxes = self._leg_boxes()
             if self.drift_correction and any(state.in_contact):

@@ -216,3 +216,33 @@ def test_bad_camera_data_leaves_the_map_and_says_why(intrinsics: tuple[float, ..
     with np.errstate(all="raise"):
         assert m.update_from_depth(np.ones((30, 40)), *intrinsics, *pose) == status
     assert not np.isfinite(m.elevation).any()
+
+
+def test_initial_submap_fills_unknown_cells_under_the_feet_until_the_camera_sees_them() -> None:
+    params = ElevationMapParams(length_m=2.0, resolution_m=0.05, init_submap_back_m=0.5,
+                                init_submap_front_m=0.2, init_submap_half_y_m=0.3)
+    m = ElevationMap(params)
+    known = _cell_point(m, 20, 20, 0.7)                 # a cell already measured keeps its value
+    m.integrate_points(known[None], 1e-6)
+    filled = m.initialize_submap(known[:2], 0.1)
+    assert filled > 0
+    x, y = m.cell_centers()
+    ahead = x - known[0]
+    inside = (ahead >= -0.5) & (ahead <= 0.2) & (np.abs(y - known[1]) <= 0.3)
+    assert np.count_nonzero(inside) == filled + 1
+    assert m.elevation[20, 20] == pytest.approx(0.7)
+    assert np.allclose(m.elevation[inside & ~np.isclose(m.elevation, 0.7)], 0.1)
+    assert np.isnan(m.elevation[~inside]).all()         # nothing past the box (ahead: 0.2 m)
+    # the first measurement of a prior cell replaces it, even 0.5 m away (a pit's floor)
+    pit = _cell_point(m, 20, 16, -0.4)
+    assert m.elevation[20, 16] == pytest.approx(0.1)
+    m.integrate_points(pit[None], 1e-6)
+    assert m.elevation[20, 16] == pytest.approx(-0.4)
+    m.integrate_points(_cell_point(m, 20, 16, 0.1)[None], 1e-6)   # then it fuses as usual
+    assert m.elevation[20, 16] == pytest.approx(-0.4)
+
+
+def test_initial_submap_is_off_by_default() -> None:
+    m = ElevationMap(ElevationMapParams(length_m=1.0, resolution_m=0.05))
+    assert m.initialize_submap([0.0, 0.0], 0.0) == 0
+    assert np.isnan(m.elevation).all()
