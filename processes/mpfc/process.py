@@ -11,6 +11,11 @@ plan, as on the robot. Time is the robot state's ``utime``: no wall clock decide
 Footholds come from ``params.footholds``: ``channel`` (the foothold set from S3, or from any
 ground-truth publisher), ``flat`` (level ground around the robot) or ``terrain:NAME_OR_FILE``
 (the ground-truth footholds of a terrain, as the sim builds them).
+
+Footholds wholly more than ``params.foothold_max_height_m`` (default 0.35 m) above or below
+the stance foot are left out of the solve (ours, not in the paper): the MPFC's costs do not see
+footstep height (R has a zero z weight, Table V), so it would otherwise take a level-looking
+step into a pit or off a landing that S3 rightly finds flat and safe, but that no leg reaches.
 """
 
 from __future__ import annotations
@@ -41,6 +46,27 @@ GAIT_SS = (0, 1)  # single stance on left / right
 GAIT_DS = (2, 3)  # double stance after a left / right touchdown
 GAIT_STANDING = 4
 STATUS = {"optimal": 0, "time_limited": 1, "infeasible": 2}
+DEFAULT_MAX_HEIGHT_M = 0.35  # two 15 cm stairs (the horizon's second step) and some margin
+
+
+def within_height(footholds: list[Foothold], z: float, max_dz: float) -> list[Foothold]:
+    """The footholds with some corner within ``max_dz`` of height ``z`` (all when max_dz <= 0).
+
+    A foothold's corners span [z_lo, z_hi] on its plane; it is kept when that interval comes
+    within ``max_dz`` of z. The objects are kept, not copied: the solver caches its padded
+    arrays by foothold identity, and the result only changes when the set does."""
+    if max_dz <= 0.0:
+        return footholds
+    out = []
+    for f in footholds:
+        v = f.vertices_xy
+        if len(v) == 0:
+            continue
+        beta, alpha = f.plane_xy
+        zs = alpha + v @ beta
+        if float(zs.min()) - max_dz <= z <= float(zs.max()) + max_dz:
+            out.append(f)
+    return out
 
 
 def footholds_from_msg(msg: foothold_set_t) -> list[Foothold]:
@@ -117,6 +143,7 @@ class MpfcNode(Node):
         static_footholds: list[Foothold],
         default_velocity: tuple[float, float],
         height_lookup: bool,
+        max_height_m: float = DEFAULT_MAX_HEIGHT_M,
     ) -> None:
         self.params = params
         self.solver = MpfcSolver(params)
@@ -127,6 +154,8 @@ class MpfcNode(Node):
         self.vdes = np.array(default_velocity, dtype=float)
         self.walking = True
         self.height_lookup = height_lookup
+        self.max_height_m = max_height_m
+        self._reachable: tuple[list[Foothold] | None, float, list[Foothold]] = (None, math.nan, [])
         self.map = MapHeight()
         self.stance: int | None = None
         self.touchdown_s = 0.0
@@ -198,7 +227,7 @@ class MpfcNode(Node):
             self.stance_pos,
             t_star,
             self.vdes,
-            self.footholds,
+            self._reachable_footholds(),
             yaw=yaw,
         )
         self.solves += 1
@@ -210,6 +239,16 @@ class MpfcNode(Node):
         else:
             self.failures += 1
         self._publish(ctx, state, sol, sol.status, yaw, x)
+
+    def _reachable_footholds(self) -> list[Foothold]:
+        """The footholds within ``max_height_m`` of the stance foot (see the module docstring);
+        recomputed when the foothold set changes or the stance foot moves by 1 cm in z."""
+        z = float(self.stance_pos[2])
+        src, z_then, kept = self._reachable
+        if src is not self.footholds or not abs(z - z_then) < 0.01:
+            kept = within_height(self.footholds, z, self.max_height_m)
+            self._reachable = (self.footholds, z, kept)
+        return kept
 
     # -- outputs -------------------------------------------------------------------------------
     def _publish(
@@ -343,10 +382,19 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
             proc.key("params", "default_velocity"),
             f"must be [vx, vy] in m/s, got {vel!r}",
         )
+    max_dz = proc.params.get("foothold_max_height_m", DEFAULT_MAX_HEIGHT_M)
+    if isinstance(max_dz, bool) or not isinstance(max_dz, (int, float)) or not (
+            math.isfinite(max_dz) and max_dz >= 0.0):
+        raise ConfigError(
+            str(proc.source_file),
+            proc.key("params", "foothold_max_height_m"),
+            f"must be a height in m >= 0 (0: no limit), got {max_dz!r}",
+        )
     return MpfcNode(
         params,
         "channel" if spec == "channel" else "static",
         _static_footholds(spec, proc, profile),
         (float(vel[0]), float(vel[1])),
         bool(proc.params.get("height_lookup", True)),
+        float(max_dz),
     )
