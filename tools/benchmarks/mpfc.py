@@ -218,6 +218,7 @@ def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool 
         gc.enable()
     w = np.asarray(wall)
     figs: dict[str, object] = {"closed_loop_solves": int(w.size)}
+    figs.update(summarize(w, "closed_loop_solve"))
     if problems:
         figs.update(compare_gurobi(GurobiBackend(), model, problems, "closed_loop_gurobi"))
     cnt = np.asarray(counts)
