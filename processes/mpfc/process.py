@@ -20,6 +20,7 @@ step into a pit or off a landing that S3 rightly finds flat and safe, but that n
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -390,6 +391,10 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
             proc.key("params", "foothold_max_height_m"),
             f"must be a height in m >= 0 (0: no limit), got {max_dz!r}",
         )
+    if profile.mode == "lockstep":
+        # lockstep results must not depend on how busy the machine is: no wall-clock budget
+        # (the search is finite: at most enumerate_max_leaves leaves, or the B&B tree)
+        params = dataclasses.replace(params, time_limit_ms=math.inf)
     return MpfcNode(
         params,
         "channel" if spec == "channel" else "static",
