@@ -9,6 +9,10 @@ about 15 N rms over squats and leg lifts; a loaded spring deflects negative).
 
 Contact turns on above ``on_n`` and off below ``off_n`` (N), so impacts and the ringing of a
 swinging leg's springs do not chatter the contact flags (and with them the InEKF's contacts).
+A contact also starts only while the foot moves slower than ``touchdown_speed_mps`` in the
+world: a fast swing (a step-up swing reaches 2-3 m/s) loads the springs by its own inertia
+past ``on_n``, and a contact declared there pins a flying foot in the InEKF and drags the
+base estimate (measured: 9 cm on a 15 cm step-up).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ class ContactParams:
     heel_n_per_rad: float = 2375.0
     on_n: float = 90.0
     off_n: float = 45.0
+    touchdown_speed_mps: float = 1.0  # a contact starts only on a foot slower than this
 
 
 class SpringContact:
@@ -37,9 +42,10 @@ class SpringContact:
         self.force = np.zeros(2)
         self.in_contact = [False, False]
 
-    def update(self, spring_defl: np.ndarray) -> None:
-        """``spring_defl`` (2, 2): (shin, heel) deflection per leg, rad; updates ``force`` (N)
-        and ``in_contact``."""
+    def update(self, spring_defl: np.ndarray, foot_speed: np.ndarray | None = None) -> None:
+        """``spring_defl`` (2, 2): (shin, heel) deflection per leg, rad; ``foot_speed`` (2):
+        each foot's speed in the world, m/s (None: not gated); updates ``force`` (N) and
+        ``in_contact``."""
         np.matmul(spring_defl, self._gain, out=self.force)
         np.negative(self.force, out=self.force)
         p = self.params
@@ -48,5 +54,6 @@ class SpringContact:
             if self.in_contact[k]:
                 if f < p.off_n:
                     self.in_contact[k] = False
-            elif f > p.on_n:
+            elif f > p.on_n and (foot_speed is None
+                                 or foot_speed[k] < p.touchdown_speed_mps):
                 self.in_contact[k] = True

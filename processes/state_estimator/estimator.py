@@ -10,6 +10,7 @@ preallocated; the returned ``Estimate`` is the same object every call (copy to k
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -80,6 +81,23 @@ def _sole_points(foot_pos: np.ndarray, foot_axis: np.ndarray, up: np.ndarray,
             h[k, i] = (foot_pos[k, i] - r_imu[i] - radius * up[i]
                        + mode * half * foot_axis[k, i])
 
+
+@numba.njit(cache=True, nogil=True)
+def _foot_speeds(R: np.ndarray, v_imu: np.ndarray, w: np.ndarray, foot_pos: np.ndarray,
+                 foot_vel: np.ndarray, r_imu: np.ndarray, out: np.ndarray) -> None:
+    """Each foot's speed in the world: v_imu + R (w x (p - r_imu) + v_rel), with p and v_rel
+    the foot's position and velocity relative to the pelvis (pelvis frame, IMU aligned)."""
+    for k in range(2):
+        e0, e1, e2 = (foot_pos[k, 0] - r_imu[0], foot_pos[k, 1] - r_imu[1],
+                      foot_pos[k, 2] - r_imu[2])
+        b0 = w[1] * e2 - w[2] * e1 + foot_vel[k, 0]
+        b1 = w[2] * e0 - w[0] * e2 + foot_vel[k, 1]
+        b2 = w[0] * e1 - w[1] * e0 + foot_vel[k, 2]
+        s = 0.0
+        for i in range(3):
+            vi = v_imu[i] + R[i, 0] * b0 + R[i, 1] * b1 + R[i, 2] * b2
+            s += vi * vi
+        out[k] = math.sqrt(s)
 
 class RejectedPacket(ValueError):
     """A packet with values outside the physically plausible ranges; the message says which."""
@@ -169,12 +187,15 @@ class CassieEstimator:
         self._h = np.zeros((2, 3))
         self._sole_mode = np.zeros(2, dtype=np.int64)  # per foot: 0 mid-sole, -1 / +1 the end
         self._switched = np.zeros(2, dtype=np.bool_)  # at -/+ the axis; which feet switched
+        self._foot_speed = np.zeros(2)  # each foot's speed in the world, m/s
         self._quat = np.zeros(4)
         self._vb = np.zeros(3)
         self._alip_utime = 0
         # compile (or load from the on-disk cache) the kernels now, not on the first packet
         _in_bounds(self._lo, self._lo, self._hi, 0.0, 2.0)
         self._sole_points(np.array((0.0, 0.0, 1.0)))
+        _foot_speeds(np.eye(3), np.zeros(3), np.zeros(3), self.kin.foot_pos, self.kin.foot_vel,
+                     self.r_imu, self._foot_speed)
         if (setup_s := time.perf_counter() - t0) > 3.0:
             log.info("estimator set up in %.1f s: numba compiled its kernels (first start on "
                      "this machine or after a code change; cached in __pycache__ from now)",
@@ -238,8 +259,11 @@ class CassieEstimator:
         self._last_utime = utime
         self._gyro_prev[:] = pkt.imu_gyro
         switched = self._sole_points(f.R[2])
-        # contact from the springs, then the contact-aided correction (Hartley Sec. 6)
-        self.contact.update(kin.spring_defl)
+        # contact from the springs (a contact starts only on a slow foot), then the
+        # contact-aided correction (Hartley Sec. 6)
+        _foot_speeds(f.R, f.v, pkt.imu_gyro, kin.foot_pos, kin.foot_vel, self.r_imu,
+                     self._foot_speed)
+        self.contact.update(kin.spring_defl, self._foot_speed)
         flags = self.contact.in_contact
         h = self._h
         for k in (0, 1):

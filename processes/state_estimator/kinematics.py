@@ -132,6 +132,20 @@ def _feet_and_springs(xpos: np.ndarray, xmat: np.ndarray, foot_body: np.ndarray,
 
 
 @_jit
+def _foot_velocities(cvel: np.ndarray, subtree_com: np.ndarray, pelvis: int,
+                     foot_body: np.ndarray, foot_pos: np.ndarray, foot_vel: np.ndarray) -> None:
+    """Velocity of each foot's capsule centre relative to the pelvis (pelvis frame), from
+    ``cvel`` with the base at rest: v + w x (p - c) at the tree's subtree CoM ``c``."""
+    c0, c1, c2 = subtree_com[pelvis, 0], subtree_com[pelvis, 1], subtree_com[pelvis, 2]
+    for k in range(2):
+        w = cvel[foot_body[k]]
+        e0, e1, e2 = foot_pos[k, 0] - c0, foot_pos[k, 1] - c1, foot_pos[k, 2] - c2
+        foot_vel[k, 0] = w[3] + w[1] * e2 - w[2] * e1
+        foot_vel[k, 1] = w[4] + w[2] * e0 - w[0] * e2
+        foot_vel[k, 2] = w[5] + w[0] * e1 - w[1] * e0
+
+
+@_jit
 def _rod_velocities(xpos: np.ndarray, xmat: np.ndarray, cvel: np.ndarray,
                     subtree_com: np.ndarray, v: np.ndarray, pelvis: int, rod_body: np.ndarray,
                     tgt_body: np.ndarray, rod_tip: np.ndarray, tgt_off: np.ndarray,
@@ -196,6 +210,7 @@ class LegKinematics:
     * ``foot_pos`` (2, 3): the centre of each foot's collision capsule (mid-foot, ``radius``
       above the sole) relative to the pelvis origin; ``foot_axis`` (2, 3) its unit axis (heel
       to toe or back), for picking the sole point that touches the ground.
+    * ``foot_vel`` (2, 3): the capsule centres' velocity relative to the pelvis.
     * ``spring_defl`` (2, 2): (shin, heel) spring deflections per leg, rad.
     * ``com`` (3), ``com_vel`` (3), ``angmom_com`` (3) after ``update_momentum``.
     """
@@ -307,6 +322,7 @@ class LegKinematics:
         self.v = np.zeros(self.nv)
         self.foot_pos = np.zeros((2, 3))
         self.foot_axis = np.zeros((2, 3))
+        self.foot_vel = np.zeros((2, 3))
         self.spring_defl = np.zeros((2, 2))
         self.com = np.zeros(3)
         self.com_vel = np.zeros(3)
@@ -348,6 +364,8 @@ class LegKinematics:
         # rod velocities from the closures
         self._qvel[:] = v
         mujoco.mj_comVel(m, d)
+        _foot_velocities(self._cvel, self._subtree_com, self.pelvis, self.foot_body,
+                         self.foot_pos, self.foot_vel)
         _rod_velocities(self._xpos, self._xmat, self._cvel, self._subtree_com, v,
                         self.pelvis, self._rod_body, self._tgt_body, self._rod_tip,
                         self._tgt_off, self._pla_axis, self._ach_dof, self._pla_dof)
