@@ -2,7 +2,8 @@
 
 The same process nodes as `cassie launch` (from ``hw_config/experiment.yaml``) are stepped in
 sim-time order inside this one process, so a result depends on the seed and the code, never on
-how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth), ``beam``
+how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth; 40 cm with
+``--perception``, as the paper's Fig. 11), ``beam``
 (23 cm wide) and ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``), with
 ground-truth footholds from the sim, or with ``--perception`` the footholds of S3.
 
@@ -145,6 +146,10 @@ class Judge:
         return sum(
             not any(f.contains_xy(p[0], p[1]) for f in self.footholds) for _, p in self.touchdowns
         )
+
+
+#: tread depth of ``cassie experiment stairs --perception`` (the paper's Fig. 11, bottom)
+PERCEPTION_STAIRS_DEPTH_M = 0.40
 
 
 def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
@@ -405,8 +410,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--trials", type=int, default=1, help="trials, seeds seed..seed+N-1")
     ap.add_argument("--dmin", type=float, default=None, help="stones: minimum side d_min, m")
     ap.add_argument("--depth", type=float, default=None,
-                    help="stairs: tread depth, m (default 0.27; the paper's perceptive "
-                    "stairs are 0.40)")
+                    help="stairs: tread depth, m (default 0.27 with true footholds and 0.40 "
+                    "with --perception: the paper's Fig. 11, top and bottom)")
     ap.add_argument("--perception", action="store_true", help="S3 footholds, not ground truth")
     ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
     ap.add_argument("--profile", type=Path, default=HW_CONFIG_DIR / "experiment.yaml")
@@ -427,6 +432,12 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--depth is for the stairs experiment, 0.1 to 2.0 m")
     if args.duration <= 0 or args.trials < 1:
         ap.error("--duration must be > 0 and --trials >= 1")
+    if args.name == "stairs" and args.perception and args.depth is None:
+        # S3's safety margins leave no steppable band on 27 cm treads; the paper's perceptive
+        # stairs are 40 cm deep (Section VIII-A, Fig. 11 bottom)
+        args.depth = PERCEPTION_STAIRS_DEPTH_M
+        print(f"stairs with perception: {args.depth:.2f} m treads, as the paper's Fig. 11 "
+              "(--depth to change)")
     if args.launch:
         base = args.profile if args.profile != HW_CONFIG_DIR / "experiment.yaml" else (
             HW_CONFIG_DIR / "sim.yaml")

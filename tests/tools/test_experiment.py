@@ -88,3 +88,28 @@ def test_stairs_depth_writes_a_terrain_with_that_tread_depth(tmp_path) -> None:
         "depth"] == pytest.approx(0.27)
     with pytest.raises(SystemExit):
         experiment_main(["flat", "--depth", "0.4"])
+
+
+def test_stairs_with_perception_default_to_the_papers_40_cm_treads(monkeypatch, capsys):
+    import tools.experiment as ex
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fake_run_trial(*args, depth=None, **kw):
+        seen["depth"] = depth
+        raise Stop
+
+    monkeypatch.setattr(ex, "run_trial", fake_run_trial)
+    with pytest.raises(Stop):
+        ex.main(["stairs", "--perception"])
+    assert seen["depth"] == ex.PERCEPTION_STAIRS_DEPTH_M == 0.40
+    assert "Fig. 11" in capsys.readouterr().out
+    with pytest.raises(Stop):
+        ex.main(["stairs"])  # true footholds: the terrain file's 27 cm
+    assert seen["depth"] is None
+    with pytest.raises(Stop):
+        ex.main(["stairs", "--perception", "--depth", "0.5"])
+    assert seen["depth"] == 0.5
