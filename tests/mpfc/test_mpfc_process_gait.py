@@ -60,7 +60,8 @@ def _proc(**params) -> ProcessConfig:  # type: ignore[no-untyped-def]
 def _run(seconds: float, **params):  # type: ignore[no-untyped-def]
     from runtime.config import HW_CONFIG_DIR
 
-    profile = type("P", (), {"resolve": lambda self, p: HW_CONFIG_DIR / p})()
+    profile = type("P", (), {"resolve": lambda self, p: HW_CONFIG_DIR / p,
+                             "mode": "lockstep"})()  # the harness steps it in sim time
     node = make_node(_proc(**params), profile)
     h = Harness(
         [
