@@ -128,6 +128,9 @@ class OscController:
             q, v = self._q, self._v
         try:
             m.update(q, v)
+            fault = self.safety.check_fall(float(q[2]) - float(m.p_contact[:, 2].min()))
+            if fault is not None:
+                return self._safe(q, v, fault, t0)
             fault = self._choose_mode(t_s, plan, command, plan_ok)
             if fault is not None:
                 return self._safe(q, v, fault, t0)

@@ -1,6 +1,7 @@
 """Fault detection and the safe mode: joint damping, always finite.
 
-A state with NaN/inf, a fall (pelvis below ``fall_height``) or a missing MPFC plan while
+A state with NaN/inf, a fall (pelvis less than ``fall_height`` above its lowest foot contact
+point: on stairs or a platform the ground is not at z = 0) or a missing MPFC plan while
 walking latches the OSC into safe mode, where it commands ``u = -d * qdot`` on the ten motors
 (clipped to the torque limits, NaN velocities read as zero). ``reset`` clears the latch.
 """
@@ -25,13 +26,19 @@ class SafetyMonitor:
         self._u = np.zeros(len(motor_dof))
 
     def check_state(self, q: np.ndarray, v: np.ndarray) -> str | None:
-        """Latch and return a fault for a non-finite state or a fall, else the current latch."""
-        if self.fault is None:
-            # a sum is NaN when any entry is NaN or +-inf (inf - inf, inf + x, NaN + x)
-            if not (math.isfinite(float(q.sum())) and math.isfinite(float(v.sum()))):
-                self.fault = "non-finite state (NaN/inf in q or v)"
-            elif q[2] < self.p.fall_height:
-                self.fault = f"fall: pelvis at {q[2]:.3f} m < {self.p.fall_height:.2f} m"
+        """Latch and return a fault for a non-finite state, else the current latch."""
+        # a sum is NaN when any entry is NaN or +-inf (inf - inf, inf + x, NaN + x)
+        if self.fault is None and not (math.isfinite(float(q.sum()))
+                                       and math.isfinite(float(v.sum()))):
+            self.fault = "non-finite state (NaN/inf in q or v)"
+        return self.fault
+
+    def check_fall(self, pelvis_over_feet: float) -> str | None:
+        """Latch and return a fall when the pelvis is less than ``fall_height`` above the
+        lowest foot contact point (after the kinematics), else the current latch."""
+        if self.fault is None and pelvis_over_feet < self.p.fall_height:
+            self.fault = (f"fall: pelvis {pelvis_over_feet:.3f} m above the lowest foot "
+                          f"< {self.p.fall_height:.2f} m")
         return self.fault
 
     def check_plan(self, t: float, plan_time: float | None) -> str | None:

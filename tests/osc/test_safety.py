@@ -55,13 +55,24 @@ def test_nan_state_gives_finite_damping_torques_and_safe_status(q_stand):
     assert dbg.mode == STANDING
 
 
-def test_fall_below_0p6_m_latches_safe_mode(q_stand):
+def test_pelvis_lying_at_its_feet_height_latches_safe_mode(q_stand):
     osc = OscController()
     q = q_stand.copy()
-    q[2] = 0.55
+    q[2] = 0.2
+    q[3:7] = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)  # rolled 90 deg: on its side
     u, dbg = osc.update(0.0, q, np.zeros(32))
     assert dbg.mode == SAFE and "fall" in dbg.status
     assert np.all(np.isfinite(u)) and np.all(np.abs(u) <= osc.model.u_max)
+
+
+def test_standing_on_a_high_landing_is_no_fall(q_stand):
+    """The fall height is over the feet, not over z = 0: on the stairs' 0.9 m landing the
+    robot stands (with the old absolute check a robot lying there never counted as fallen)."""
+    osc = OscController()
+    q = q_stand.copy()
+    q[2] += 0.9
+    _, dbg = osc.update(0.0, q, np.zeros(32))
+    assert dbg.mode == STANDING, dbg.status
 
 
 def test_missing_plan_while_walking_latches_safe_mode(q_stand):
