@@ -65,6 +65,10 @@ class EstimatorParams:
         con = r.mapping(doc.get("contact", {}), "contact")
         r.keys(con, "contact.", set(ContactParams.__dataclass_fields__))
         contact = ContactParams(**{k: r.num(con, "contact", k, lo=0.0) for k in con})
+        if contact.touchdown_speed_mps <= 0.0:
+            raise ConfigError(file, "contact.touchdown_speed_mps",
+                              f"{contact.touchdown_speed_mps} would never let a contact start",
+                              allowed="> 0 m/s (about 1: a touchdown lands at ~0.3 m/s)")
         if contact.off_n >= contact.on_n:
             raise ConfigError(file, "contact.off_n", f"{contact.off_n} must be below "
                               f"contact.on_n ({contact.on_n}) for hysteresis")

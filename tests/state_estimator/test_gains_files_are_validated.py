@@ -25,6 +25,7 @@ def test_shipped_gains_files_load():
         ({"inekf": {"gyro": -1.0}}, "inekf.gyro"),
         ({"inekf": {"gyros": 1.0}}, "inekf.gyros"),
         ({"contact": {"on_n": 10.0, "off_n": 20.0}}, "contact.off_n"),
+        ({"contact": {"touchdown_speed_mps": 0.0}}, "contact.touchdown_speed_mps"),
         ({"alip": {"height": "tall"}}, "alip.height"),
         ({"network_every": 0}, "network_every"),
         ({"init": {"xy_m": [1.0]}}, "init.xy_m"),
