@@ -401,14 +401,7 @@ class ExactSearch:
         pen = _penalty_of_leaves(lo, hi, vals.min(axis=2), vals.max(axis=2), qp.lim,
                                  qp.w_soft).reshape(shape)
         q_step, q_sum = self._foothold_bounds(plain.z, lf)
-        q_max = np.zeros(shape)
-        q_add = np.zeros(shape)
-        for k in range(n):
-            view = [1] * n
-            view[k] = m
-            q_max = np.maximum(q_max, q_step[k].reshape(view))
-            q_add = q_add + q_sum[k].reshape(view)
-        return plain.objective + np.maximum(q_max, q_add) + (1.0 - 1e-9) * pen
+        return plain.objective + _leaf_bounds(q_step, q_sum) + (1.0 - 1e-9) * pen
 
     def _later_step_bounds(self, z: np.ndarray, lf: LocalFootholds) -> np.ndarray | None:
         """Bounds below a node whose first footstep is fixed, from its QP solution z: the same
@@ -461,22 +454,18 @@ class ExactSearch:
         do not pay for it, hard ones stop exploring leaves the CoM limits make expensive."""
         n, m = self.engine.N, lf.count
         shape = (m,) * n
-        lb_max = np.zeros(shape)
-        lb_add = np.zeros(shape)
         feasible = np.ones(shape, dtype=bool)
         for k in range(n):
-            view = [1] * n
-            view[k] = m
-            lb_max = np.maximum(lb_max, lb_step[k].reshape(view))
-            lb_add = lb_add + lb_sum[k].reshape(view)
             if k == 0:
+                view = [1] * n
+                view[0] = m
                 feasible &= ok_first.reshape(view)
             else:
                 pview = [1] * n
                 pview[k - 1] = m
                 pview[k] = m
                 feasible &= ok_pairs[k - 1].reshape(pview)
-        lb = np.where(feasible, f_b + np.maximum(lb_max, lb_add), np.inf).ravel()
+        lb = np.where(feasible, f_b + _leaf_bounds(lb_step, lb_sum), np.inf).ravel()
         order = np.argsort(lb, kind="stable")
         pen_at = nodes + self.penalty_bound_after
         best, best_a, best_z = np.inf, None, None
@@ -652,6 +641,21 @@ class ExactSearch:
         status = "optimal" if best_a is not None else "infeasible"
         return SearchResult(status, best_a, best_z, float(best), nodes, float(best))
 
+
+
+def _leaf_bounds(lb_step: np.ndarray, lb_sum: np.ndarray) -> np.ndarray:
+    """(M,)*N quadratic bounds on f - f_b of every leaf from the per-step, per-foothold
+    bounds of ``_foothold_bounds``: max(max_k D[k, i_k], sum_k G[k, i_k])."""
+    n, m = lb_step.shape
+    shape = (m,) * n
+    lb_max = np.zeros(shape)
+    lb_add = np.zeros(shape)
+    for k in range(n):
+        view = [1] * n
+        view[k] = m
+        lb_max = np.maximum(lb_max, lb_step[k].reshape(view))
+        lb_add = lb_add + lb_sum[k].reshape(view)
+    return np.maximum(lb_max, lb_add)
 
 
 @numba.njit(cache=True, nogil=True)
