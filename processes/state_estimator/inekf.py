@@ -171,31 +171,24 @@ def _propagate(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np
 def _correct(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np.ndarray,
              h: np.ndarray, c0: bool, c1: bool, kin_var: float) -> None:
     """Leg-kinematics update (Hartley Sec. 6, eq. (36)-(40)) for the feet in contact."""
-    m = 3 * (int(c0) + int(c1))
+    feet = [k for k, on in ((0, c0), (1, c1)) if on]  # measured feet, in stacking order
+    m = 3 * len(feet)
     PHt = np.empty((DIM, m))  # P H^T, H = [0, 0, -I, +I at d_k] per contact foot
     z = np.empty(m)  # innovation R h_k + p - d_k, stacked
-    col = 0
-    for k in range(2):
-        if (k == 0 and not c0) or (k == 1 and not c1):
-            continue
-        f = 9 + 3 * k
+    for b, k in enumerate(feet):
+        f, col = 9 + 3 * k, 3 * b
         for j in range(3):
             for i in range(DIM):
                 PHt[i, col + j] = P[i, f + j] - P[i, 6 + j]
             z[col + j] = (R[j, 0] * h[k, 0] + R[j, 1] * h[k, 1] + R[j, 2] * h[k, 2]
                           + p[j] - d[k, j])
-        col += 3
     S = np.empty((m, m))  # H P H^T + N, N = s_k^2 I (R N R^T = N: isotropic)
-    col = 0
-    for k in range(2):
-        if (k == 0 and not c0) or (k == 1 and not c1):
-            continue
-        f = 9 + 3 * k
+    for b, k in enumerate(feet):
+        f, col = 9 + 3 * k, 3 * b
         for j in range(3):
             for c in range(m):
                 S[col + j, c] = PHt[f + j, c] - PHt[6 + j, c]
             S[col + j, col + j] += kin_var
-        col += 3
     # K = P H^T S^-1 by Cholesky (S = L L^T, symmetric positive definite): K^T = S^-1 PHt^T
     L = np.zeros((m, m))
     for j in range(m):
