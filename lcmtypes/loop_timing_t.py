@@ -13,14 +13,18 @@ class loop_timing_t(object):
     """
     Self-measurement of one loop over a reporting window (TIMING, about 10 Hz per loop).
     Times in milliseconds. The raw per-tick samples of the window are included so that a
-    report from a log can compute exact percentiles.
+    report from a log can compute exact percentiles. CPU time is the cost of the work: per tick
+    the loop thread's own CPU time, per window the whole process's (every thread: LCM's receive
+    thread, a camera thread), so a report can sum what each process takes of the machine.
+    The first message of a process (ticks 0) is sent right after its setup: the supervisor's
+    sign that it is up; an idle loop keeps sending empty windows as a heartbeat.
     """
 
-    __slots__ = ["header", "process", "loop", "kind", "window_s", "rate_hz", "target_rate_hz", "deadline_ms", "ticks", "ticks_total", "deadline_misses", "deadline_misses_total", "overruns_total", "stale_skipped_total", "decode_errors_total", "period_mean_ms", "period_max_ms", "exec_p50_ms", "exec_p99_ms", "exec_max_ms", "lateness_p50_ms", "lateness_p99_ms", "lateness_max_ms", "input_age_p50_ms", "input_age_p99_ms", "input_age_max_ms", "num_samples", "exec_ms", "lateness_ms", "input_age_ms"]
+    __slots__ = ["header", "process", "loop", "kind", "window_s", "rate_hz", "target_rate_hz", "deadline_ms", "ticks", "ticks_total", "deadline_misses", "deadline_misses_total", "overruns_total", "stale_skipped_total", "decode_errors_total", "period_mean_ms", "period_max_ms", "exec_p50_ms", "exec_p99_ms", "exec_max_ms", "lateness_p50_ms", "lateness_p99_ms", "lateness_max_ms", "input_age_p50_ms", "input_age_p99_ms", "input_age_max_ms", "cpu_p50_ms", "cpu_p99_ms", "cpu_max_ms", "process_cpu_s", "process_cpu_share", "rate_skipped_total", "status", "health", "num_counters", "counter_names", "counter_values", "num_samples", "exec_ms", "lateness_ms", "input_age_ms", "cpu_ms"]
 
-    __typenames__ = ["lcmtypes.header_t", "string", "string", "string", "double", "double", "double", "double", "int32_t", "int64_t", "int32_t", "int64_t", "int64_t", "int64_t", "int64_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "int32_t", "float", "float", "float"]
+    __typenames__ = ["lcmtypes.header_t", "string", "string", "string", "double", "double", "double", "double", "int32_t", "int64_t", "int32_t", "int64_t", "int64_t", "int64_t", "int64_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "int64_t", "string", "int8_t", "int32_t", "string", "double", "int32_t", "float", "float", "float", "float"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, ["num_samples"], ["num_samples"], ["num_samples"]]
+    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, ["num_counters"], ["num_counters"], None, ["num_samples"], ["num_samples"], ["num_samples"], ["num_samples"]]
 
     def __init__(self):
         self.header = lcmtypes.header_t()
@@ -119,6 +123,56 @@ class loop_timing_t(object):
 
         self.input_age_max_ms = 0.0
         """ LCM Type: double """
+        self.cpu_p50_ms = 0.0
+        """ LCM Type: double """
+        self.cpu_p99_ms = 0.0
+        """
+        the loop thread's CPU time per tick
+        LCM Type: double
+        """
+
+        self.cpu_max_ms = 0.0
+        """ LCM Type: double """
+        self.process_cpu_s = 0.0
+        """ LCM Type: double """
+        self.process_cpu_share = 0.0
+        """
+        CPU seconds of the whole process (all threads) so far
+        LCM Type: double
+        """
+
+        self.rate_skipped_total = 0
+        """
+        of one core, over this window (1.0 = a whole core)
+        LCM Type: int64_t
+        """
+
+        self.status = ""
+        """
+        message-driven: triggers left out by max_rate_hz
+        LCM Type: string
+        """
+
+        self.health = 0
+        """
+        the node's one-line status (mode, counters, last error)
+        LCM Type: int8_t
+        """
+
+        self.num_counters = 0
+        """
+        0 ok, 1 warning, 2 fault (a --duration launch fails)
+        LCM Type: int32_t
+        """
+
+        self.counter_names = []
+        """ LCM Type: string[num_counters] """
+        self.counter_values = []
+        """
+        the node's own counters (packets, steps, mode...)
+        LCM Type: double[num_counters]
+        """
+
         self.num_samples = 0
         """ LCM Type: int32_t """
         self.exec_ms = []
@@ -126,6 +180,8 @@ class loop_timing_t(object):
         self.lateness_ms = []
         """ LCM Type: float[num_samples] """
         self.input_age_ms = []
+        """ LCM Type: float[num_samples] """
+        self.cpu_ms = []
         """ LCM Type: float[num_samples] """
 
     def encode(self):
@@ -149,10 +205,23 @@ class loop_timing_t(object):
         buf.write(struct.pack('>I', len(__kind_encoded)+1))
         buf.write(__kind_encoded)
         buf.write(b"\0")
-        buf.write(struct.pack(">ddddiqiqqqqdddddddddddi", self.window_s, self.rate_hz, self.target_rate_hz, self.deadline_ms, self.ticks, self.ticks_total, self.deadline_misses, self.deadline_misses_total, self.overruns_total, self.stale_skipped_total, self.decode_errors_total, self.period_mean_ms, self.period_max_ms, self.exec_p50_ms, self.exec_p99_ms, self.exec_max_ms, self.lateness_p50_ms, self.lateness_p99_ms, self.lateness_max_ms, self.input_age_p50_ms, self.input_age_p99_ms, self.input_age_max_ms, self.num_samples))
+        buf.write(struct.pack(">ddddiqiqqqqddddddddddddddddq", self.window_s, self.rate_hz, self.target_rate_hz, self.deadline_ms, self.ticks, self.ticks_total, self.deadline_misses, self.deadline_misses_total, self.overruns_total, self.stale_skipped_total, self.decode_errors_total, self.period_mean_ms, self.period_max_ms, self.exec_p50_ms, self.exec_p99_ms, self.exec_max_ms, self.lateness_p50_ms, self.lateness_p99_ms, self.lateness_max_ms, self.input_age_p50_ms, self.input_age_p99_ms, self.input_age_max_ms, self.cpu_p50_ms, self.cpu_p99_ms, self.cpu_max_ms, self.process_cpu_s, self.process_cpu_share, self.rate_skipped_total))
+        __status_encoded = self.status.encode('utf-8')
+        buf.write(struct.pack('>I', len(__status_encoded)+1))
+        buf.write(__status_encoded)
+        buf.write(b"\0")
+        buf.write(struct.pack(">bi", self.health, self.num_counters))
+        for i0 in range(self.num_counters):
+            __counter_names_encoded = self.counter_names[i0].encode('utf-8')
+            buf.write(struct.pack('>I', len(__counter_names_encoded)+1))
+            buf.write(__counter_names_encoded)
+            buf.write(b"\0")
+        buf.write(struct.pack('>%dd' % self.num_counters, *self.counter_values[:self.num_counters]))
+        buf.write(struct.pack(">i", self.num_samples))
         buf.write(struct.pack('>%df' % self.num_samples, *self.exec_ms[:self.num_samples]))
         buf.write(struct.pack('>%df' % self.num_samples, *self.lateness_ms[:self.num_samples]))
         buf.write(struct.pack('>%df' % self.num_samples, *self.input_age_ms[:self.num_samples]))
+        buf.write(struct.pack('>%df' % self.num_samples, *self.cpu_ms[:self.num_samples]))
 
     @staticmethod
     def decode(data: bytes):
@@ -174,17 +243,27 @@ class loop_timing_t(object):
         self.loop = buf.read(__loop_len)[:-1].decode('utf-8', 'replace')
         __kind_len = struct.unpack('>I', buf.read(4))[0]
         self.kind = buf.read(__kind_len)[:-1].decode('utf-8', 'replace')
-        self.window_s, self.rate_hz, self.target_rate_hz, self.deadline_ms, self.ticks, self.ticks_total, self.deadline_misses, self.deadline_misses_total, self.overruns_total, self.stale_skipped_total, self.decode_errors_total, self.period_mean_ms, self.period_max_ms, self.exec_p50_ms, self.exec_p99_ms, self.exec_max_ms, self.lateness_p50_ms, self.lateness_p99_ms, self.lateness_max_ms, self.input_age_p50_ms, self.input_age_p99_ms, self.input_age_max_ms, self.num_samples = struct.unpack(">ddddiqiqqqqdddddddddddi", buf.read(172))
+        self.window_s, self.rate_hz, self.target_rate_hz, self.deadline_ms, self.ticks, self.ticks_total, self.deadline_misses, self.deadline_misses_total, self.overruns_total, self.stale_skipped_total, self.decode_errors_total, self.period_mean_ms, self.period_max_ms, self.exec_p50_ms, self.exec_p99_ms, self.exec_max_ms, self.lateness_p50_ms, self.lateness_p99_ms, self.lateness_max_ms, self.input_age_p50_ms, self.input_age_p99_ms, self.input_age_max_ms, self.cpu_p50_ms, self.cpu_p99_ms, self.cpu_max_ms, self.process_cpu_s, self.process_cpu_share, self.rate_skipped_total = struct.unpack(">ddddiqiqqqqddddddddddddddddq", buf.read(216))
+        __status_len = struct.unpack('>I', buf.read(4))[0]
+        self.status = buf.read(__status_len)[:-1].decode('utf-8', 'replace')
+        self.health, self.num_counters = struct.unpack(">bi", buf.read(5))
+        self.counter_names = []
+        for i0 in range(self.num_counters):
+            __counter_names_len = struct.unpack('>I', buf.read(4))[0]
+            self.counter_names.append(buf.read(__counter_names_len)[:-1].decode('utf-8', 'replace'))
+        self.counter_values = struct.unpack('>%dd' % self.num_counters, buf.read(self.num_counters * 8))
+        self.num_samples = struct.unpack(">i", buf.read(4))[0]
         self.exec_ms = struct.unpack('>%df' % self.num_samples, buf.read(self.num_samples * 4))
         self.lateness_ms = struct.unpack('>%df' % self.num_samples, buf.read(self.num_samples * 4))
         self.input_age_ms = struct.unpack('>%df' % self.num_samples, buf.read(self.num_samples * 4))
+        self.cpu_ms = struct.unpack('>%df' % self.num_samples, buf.read(self.num_samples * 4))
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if loop_timing_t in parents: return 0
         newparents = parents + [loop_timing_t]
-        tmphash = (0x41c0d83b28a31ffd+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
+        tmphash = (0x3df9ea3ad4844f8b+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -10,11 +10,11 @@ import struct
 class process_status_t(object):
     """ The supervisor's view of one process. """
 
-    __slots__ = ["name", "host", "state", "required", "pid", "restarts", "exit_code", "cpu_percent", "rss_mb", "loop_rate_hz", "deadline_misses", "last_message_age_s", "affinity", "priority", "detail"]
+    __slots__ = ["name", "host", "state", "required", "pid", "restarts", "exit_code", "cpu_percent", "cpu_s", "rss_mb", "loop_rate_hz", "deadline_misses", "last_message_age_s", "health", "status", "affinity", "priority", "detail"]
 
-    __typenames__ = ["string", "string", "string", "boolean", "int32_t", "int32_t", "int32_t", "double", "double", "double", "int64_t", "double", "string", "string", "string"]
+    __typenames__ = ["string", "string", "string", "boolean", "int32_t", "int32_t", "int32_t", "double", "double", "double", "double", "int64_t", "double", "int8_t", "string", "string", "string", "string"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None]
+    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None]
 
     def __init__(self):
         self.name = ""
@@ -41,8 +41,18 @@ class process_status_t(object):
         LCM Type: double
         """
 
+        self.cpu_s = 0.0
+        """
+        of one core, over the last second (psutil)
+        LCM Type: double
+        """
+
         self.rss_mb = 0.0
-        """ LCM Type: double """
+        """
+        CPU seconds of the process (all threads) since it started
+        LCM Type: double
+        """
+
         self.loop_rate_hz = 0.0
         """ LCM Type: double """
         self.deadline_misses = 0
@@ -53,9 +63,21 @@ class process_status_t(object):
 
         self.last_message_age_s = 0.0
         """ LCM Type: double """
+        self.health = 0
+        """
+        age of its newest TIMING message (its heartbeat), -1 none
+        LCM Type: int8_t
+        """
+
+        self.status = ""
+        """
+        from its TIMING: 0 ok, 1 warning, 2 fault
+        LCM Type: string
+        """
+
         self.affinity = ""
         """
-        age of the newest message on its output channels, -1 none
+        its node's status line, from its TIMING
         LCM Type: string
         """
 
@@ -87,7 +109,11 @@ class process_status_t(object):
         buf.write(struct.pack('>I', len(__state_encoded)+1))
         buf.write(__state_encoded)
         buf.write(b"\0")
-        buf.write(struct.pack(">biiidddqd", self.required, self.pid, self.restarts, self.exit_code, self.cpu_percent, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s))
+        buf.write(struct.pack(">biiiddddqdb", self.required, self.pid, self.restarts, self.exit_code, self.cpu_percent, self.cpu_s, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s, self.health))
+        __status_encoded = self.status.encode('utf-8')
+        buf.write(struct.pack('>I', len(__status_encoded)+1))
+        buf.write(__status_encoded)
+        buf.write(b"\0")
         __affinity_encoded = self.affinity.encode('utf-8')
         buf.write(struct.pack('>I', len(__affinity_encoded)+1))
         buf.write(__affinity_encoded)
@@ -121,7 +147,9 @@ class process_status_t(object):
         __state_len = struct.unpack('>I', buf.read(4))[0]
         self.state = buf.read(__state_len)[:-1].decode('utf-8', 'replace')
         self.required = bool(struct.unpack('b', buf.read(1))[0])
-        self.pid, self.restarts, self.exit_code, self.cpu_percent, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s = struct.unpack(">iiidddqd", buf.read(52))
+        self.pid, self.restarts, self.exit_code, self.cpu_percent, self.cpu_s, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s, self.health = struct.unpack(">iiiddddqdb", buf.read(61))
+        __status_len = struct.unpack('>I', buf.read(4))[0]
+        self.status = buf.read(__status_len)[:-1].decode('utf-8', 'replace')
         __affinity_len = struct.unpack('>I', buf.read(4))[0]
         self.affinity = buf.read(__affinity_len)[:-1].decode('utf-8', 'replace')
         __priority_len = struct.unpack('>I', buf.read(4))[0]
@@ -133,7 +161,7 @@ class process_status_t(object):
     @staticmethod
     def _get_hash_recursive(parents):
         if process_status_t in parents: return 0
-        tmphash = (0xe4548f47890ca297) & 0xffffffffffffffff
+        tmphash = (0xfeed6a7740cd004b) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

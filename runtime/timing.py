@@ -1,11 +1,17 @@
-"""Every loop measures itself: period, execution time, lateness, deadline misses, input age.
+"""Every loop measures itself: period, execution time, CPU time, lateness, misses, input age.
 
 Per tick the loop records a few integers into preallocated arrays (no allocation); about ten
 times a second the window is summarised into one ``loop_timing_t`` (with the raw samples, so a
-report from a log gets exact percentiles) and the window restarts.
+report from a log gets exact percentiles) and the window restarts. CPU time is measured twice:
+per tick, the loop thread's own (``CLOCK_THREAD_CPUTIME_ID``: the work, which preemption does
+not inflate), and per window, the whole process's (every thread, LCM's receive thread
+included), which is what the process takes of the machine.
 """
 
 from __future__ import annotations
+
+import time
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -36,6 +42,7 @@ class LoopTimer:
         self._exec = np.zeros(capacity, dtype=np.float32)
         self._late = np.zeros(capacity, dtype=np.float32)
         self._age = np.zeros(capacity, dtype=np.float32)
+        self._cpu = np.zeros(capacity, dtype=np.float32)
         self._n = 0
         self._period_sum_ns = 0
         self._period_max_ns = 0
@@ -47,12 +54,21 @@ class LoopTimer:
         self.overruns_total = 0
         self.stale_skipped_total = 0
         self.decode_errors_total = 0
+        self.rate_skipped_total = 0
         self.last_utime = 0
+        self._window_cpu_ns = time.process_time_ns()
 
     def record(
-        self, start_ns: int, end_ns: int, lateness_ns: int, input_age_ns: int, missed: bool
+        self,
+        start_ns: int,
+        end_ns: int,
+        lateness_ns: int,
+        input_age_ns: int,
+        missed: bool,
+        cpu_ns: int = 0,
     ) -> None:
-        """Record one tick. ``input_age_ns`` < 0 means the loop had no timestamped input."""
+        """Record one tick. ``input_age_ns`` < 0 means the loop had no timestamped input;
+        ``cpu_ns`` is the loop thread's CPU time spent in the tick."""
         if self._window_start_ns == 0:
             self._window_start_ns = start_ns
         if self._prev_start_ns:
@@ -66,11 +82,18 @@ class LoopTimer:
             self._exec[i] = (end_ns - start_ns) / _NS_PER_MS
             self._late[i] = lateness_ns / _NS_PER_MS
             self._age[i] = input_age_ns / _NS_PER_MS if input_age_ns >= 0 else np.nan
+            self._cpu[i] = cpu_ns / _NS_PER_MS
             self._n = i + 1
         self.ticks_total += 1
         if missed:
             self._misses += 1
             self.misses_total += 1
+
+    def start(self, now_ns: int) -> None:
+        """Open the first window (the loop is set up): idle windows are reported too, as a
+        heartbeat, so a loop waiting for its first input is seen alive."""
+        if self._window_start_ns == 0:
+            self._window_start_ns = now_ns
 
     def due(self, now_ns: int) -> bool:
         """True when the current window is long enough to report."""
@@ -78,8 +101,15 @@ class LoopTimer:
             self._window_start_ns != 0 and now_ns - self._window_start_ns >= self.report_period_ns
         )
 
-    def report(self, now_ns: int) -> loop_timing_t:
-        """Summarise the window into a message and start a new window."""
+    def report(
+        self,
+        now_ns: int,
+        status: str = "",
+        health: int = 0,
+        counters: Mapping[str, float] | None = None,
+    ) -> loop_timing_t:
+        """Summarise the window into a message and start a new window. ``status``, ``health``
+        and ``counters`` are the node's own (``Node.status``, ``health``, ``counters``)."""
         n = self._n
         msg = loop_timing_t()
         msg.header.utime = int(self.last_utime)
@@ -98,6 +128,17 @@ class LoopTimer:
         msg.overruns_total = self.overruns_total
         msg.stale_skipped_total = self.stale_skipped_total
         msg.decode_errors_total = self.decode_errors_total
+        msg.rate_skipped_total = self.rate_skipped_total
+        cpu_now = time.process_time_ns()
+        msg.process_cpu_s = cpu_now / 1e9  # CPU time of the process since it started
+        msg.process_cpu_share = (cpu_now - self._window_cpu_ns) / span_ns
+        self._window_cpu_ns = cpu_now
+        msg.status = status
+        msg.health = int(health)
+        if counters:
+            msg.counter_names = list(counters)
+            msg.counter_values = [float(v) for v in counters.values()]
+            msg.num_counters = len(msg.counter_names)
         periods = max(n - 1, 1)
         msg.period_mean_ms = self._period_sum_ns / periods / _NS_PER_MS if n > 1 else 0.0
         msg.period_max_ms = self._period_max_ns / _NS_PER_MS
@@ -117,8 +158,12 @@ class LoopTimer:
                 msg.input_age_max_ms = float(good.max())
             else:
                 msg.input_age_p50_ms = msg.input_age_p99_ms = msg.input_age_max_ms = -1.0
+            cp = self._cpu[:n]
+            msg.cpu_p50_ms, msg.cpu_p99_ms = (float(x) for x in np.percentile(cp, [50, 99]))
+            msg.cpu_max_ms = float(cp.max())
             msg.num_samples = n
             msg.exec_ms = ex.tolist()
+            msg.cpu_ms = cp.tolist()
             msg.lateness_ms = la.tolist()
             msg.input_age_ms = np.nan_to_num(ag, nan=-1.0).tolist()
         # next window

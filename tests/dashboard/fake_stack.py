@@ -175,6 +175,7 @@ def timing(utime: int, process: str, loop: str, window: int) -> loop_timing_t:
     m.exec_ms = [0.2, 0.21, 0.3, 0.4]
     m.lateness_ms = [0.01, 0.01, 0.02, 0.05]
     m.input_age_ms = [0.1, 0.1, 0.1, 0.2]
+    m.cpu_ms = [0.05, 0.05, 0.05, 0.1]
     return m
 
 
