@@ -21,7 +21,7 @@ from typing import Any
 
 from runtime.bus import Subscription
 from runtime.config_types import Profile
-from runtime.node import Node
+from runtime.node import Node, OutputGates, SlotGate
 from runtime.port_buffer import PortInbox
 
 US = 1_000_000
@@ -39,6 +39,8 @@ class Binding:
     inputs: Mapping[str, str]
     outputs: Mapping[str, str]
     delay_us: int = 0  # sim time between the trigger and the tick's outputs being visible
+    max_rate_hz: float | None = None  # at most one tick per 1/max_rate_hz of sim time
+    output_rate_hz: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
 
 class _Context:
@@ -49,6 +51,9 @@ class _Context:
 
     def publish(self, role: str, msg: Any) -> None:
         self._h._publish(self._i, role, msg)
+
+    def due(self, role: str) -> bool:
+        return self._h._out_gates[self._i].due(role, self.now_utime)
 
 
 class Harness:
@@ -64,6 +69,8 @@ class Harness:
         self._inboxes: list[PortInbox] = []
         self._contexts: list[_Context] = []
         self._pending_tick: list[bool] = []
+        self._out_gates: list[OutputGates] = []
+        self._rate_gates: list[SlotGate | None] = []
         self._seq: dict[str, int] = defaultdict(int)
         self._taps: dict[str, list[Callable[[int, Any], None]]] = defaultdict(list)
         self.exec_ns: list[list[int]] = []
@@ -107,6 +114,10 @@ class Harness:
         self._inboxes.append(PortInbox(ports))
         self._contexts.append(_Context(self, i))
         self._pending_tick.append(False)
+        self._out_gates.append(OutputGates(
+            {r: hz for r, hz in b.output_rate_hz.items() if r in b.node.outputs}))
+        self._rate_gates.append(
+            SlotGate(b.max_rate_hz) if b.max_rate_hz and b.node.trigger_role else None)
         self.exec_ns.append([])
 
     # -- running ---------------------------------------------------------------------------
@@ -189,6 +200,8 @@ class Harness:
                         role: ch.name for role, ch in proc.outputs.items() if role in node.outputs
                     },
                     delay_us=round(proc.harness_delay_ms * 1000),
+                    max_rate_hz=proc.max_rate_hz,
+                    output_rate_hz=dict(proc.output_rate_hz),
                 )
             )
         return cls(bindings)
@@ -199,6 +212,8 @@ class Harness:
         self._order += 1
 
     def _publish(self, i: int, role: str, msg: Any) -> None:
+        if not self._out_gates[i].admit(role, self._contexts[i].now_utime):
+            return
         channel = self.bindings[i].outputs[role]
         header = getattr(msg, "header", None)
         if header is not None:
@@ -238,6 +253,11 @@ class Harness:
         msg = port.pop() if port.policy == "each" else port.latest()
         if msg is None:
             return
+        gate = self._rate_gates[i]
+        if gate is not None and port.policy == "newest":
+            header = getattr(msg, "header", None)
+            if not gate.admit(int(header.utime) if header is not None else self.now_us):
+                return
         self._tick(i, msg)
 
     def _tick(self, i: int, trigger: Any | None) -> None:

@@ -4,9 +4,20 @@ Two loop kinds, as on the robot:
 
 * message-driven: wait for the driving input, drain everything queued, and tick once on the
   newest message (stale ones are skipped and counted) -- or once per message for ``each``;
-* periodic: absolute deadlines ``t0 + k * period`` (sleep, then spin for the last bit); a tick
-  that runs past its slot makes the loop skip the slots it missed rather than catch up, and each
-  skipped slot is counted as an overrun.
+* periodic: absolute deadlines ``t0 + k * period``, one sleep per slot (no spinning: on a 2-core
+  machine a spin burns the core another loop needs, and on this VM every timed wake costs
+  25-50 us of CPU whatever the method); inputs are drained without waiting at the start of each
+  tick. A tick that runs past its slot makes the loop skip the slots it missed rather than catch
+  up in a burst, and each skipped slot is counted as an overrun (the node sees the jump in
+  ``now_utime`` and may act on it: the sim steps its physics through the missed slots).
+
+A message-driven loop with ``max_rate_hz`` ticks at most once per slot of sim time (the first
+trigger of the slot; later ones are counted as rate-skipped) in real time and in the harness;
+in a live lockstep run, where the sim waits for an answer to every state, it ticks on each.
+Outputs with an ``output_rate_hz`` are published at most once per slot of sim time.
+
+Real-time factor: with ``profile.rtf`` below 1 the wall-clock periods and deadlines stretch by
+1 / rtf, so a slow machine runs the same asynchronous stack at, say, half speed.
 
 Deadline misses: a periodic tick misses when it ends after ``scheduled + deadline``; a
 message-driven tick misses when it ends more than ``deadline`` after its driving message was
@@ -25,7 +36,7 @@ from typing import Any
 
 from runtime.bus import Bus, Subscription
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
-from runtime.node import Node
+from runtime.node import Node, OutputGates, SlotGate
 from runtime.port_buffer import PortInbox
 from runtime.timing import LoopTimer
 from runtime.udp import UdpReceiver, UdpSender
@@ -44,6 +55,9 @@ class _Context:
 
     def publish(self, role: str, msg: Any) -> None:
         self._runner._publish(role, msg)
+
+    def due(self, role: str) -> bool:
+        return self._runner.out_gates.due(role, self.now_utime)
 
 
 def _set_timer_slack_ns(ns: int) -> bool:
@@ -76,26 +90,21 @@ class LiveRunner:
         proc: ProcessConfig,
         profile: Profile,
         bus: Bus | None = None,
-        spin_s: float | None = None,
     ) -> None:
         self.node = node
         self.proc = proc
         self.profile = profile
-        self.bus = bus or Bus(profile.lcm_url, source=proc.name)
+        self.bus = bus or Bus.for_profile(profile, source=proc.name)
         self.stop_event = threading.Event()
         if node.period_s is None and node.trigger_role is None and proc.rate_hz:
             node.period_s = 1.0 / proc.rate_hz
         if node.deadline_s is None:
             if proc.deadline_ms is not None:
-                node.deadline_s = proc.deadline_ms / 1e3
+                node.deadline_s = proc.deadline_ms / 1000.0
             elif node.period_s:
                 node.deadline_s = node.period_s
-        # Sleep in select until shortly before each periodic deadline, then spin the rest. With
-        # the timer slack set to 1 us the sleep is precise, so a short spin (at most 100 us, a
-        # tenth of the period for fast loops) keeps the schedule without burning a core.
-        if spin_s is None:
-            spin_s = min(100e-6, (node.period_s or 1.0) / 10)
-        self.spin_ns = int(spin_s * 1e9)
+        #: wall seconds per sim second (1 / rtf): periods and deadlines stretch with it
+        self.wall_per_sim = 1.0 / profile.rtf if profile.mode == "realtime" else 1.0
         self.ports: dict[str, Port] = {}
         self._udp_out: dict[str, UdpSender] = {}
         self._lcm_out: dict[str, str] = {}
@@ -114,21 +123,36 @@ class LiveRunner:
                 self._udp_out[role] = UdpSender(ch.udp)
             else:
                 self._lcm_out[role] = ch.name
+        self.out_gates = OutputGates(
+            {r: hz for r, hz in proc.output_rate_hz.items() if r in node.outputs}
+        )
+        #: max_rate_hz: off in a live lockstep run, where the sim waits for every answer
+        self.rate_gate = (
+            SlotGate(proc.max_rate_hz)
+            if proc.max_rate_hz and node.trigger_role and profile.mode == "realtime"
+            else None
+        )
         kind = "message" if node.trigger_role else "periodic"
         self.timer = LoopTimer(
             proc.name,
             node.name,
             kind,
-            node.deadline_s,
+            (node.deadline_s or 0.0) * self.wall_per_sim or None,
             proc.rate_hz,
             report_period_s=1.0 / profile.timing_report_hz,
         )
         self.ctx = _Context(self)
         self.inbox = PortInbox(self.ports)
         self._arrived = threading.Event()  # receive thread -> loop: the trigger is fresh
-        self._fds = [self.bus.fileno()] + [
+        # what wakes the loop: the LCM domains it subscribes to, and its UDP sockets (a loop
+        # that only publishes on LCM joins no domain at all)
+        self._fds = self.bus.filenos() + [
             p.fileno() for p in self.ports.values() if isinstance(p, UdpReceiver)
         ]
+        self._poller = select.poll()
+        for fd in self._fds:
+            self._poller.register(fd, select.POLLIN)
+        self._udp_in = [p for p in self.ports.values() if isinstance(p, UdpReceiver)]
 
     def _channel(self, role: str, table: dict[str, ChannelConfig], section: str) -> ChannelConfig:
         if role not in table:
@@ -144,6 +168,8 @@ class LiveRunner:
 
     # -- publishing ------------------------------------------------------------------------
     def _publish(self, role: str, msg: Any) -> None:
+        if not self.out_gates.admit(role, self.ctx.now_utime):
+            return
         sender = self._udp_out.get(role)
         if sender is not None:
             sender.send(msg)
@@ -154,14 +180,17 @@ class LiveRunner:
     def _poll(self, timeout_s: float) -> None:
         """Wait up to ``timeout_s`` for any input, then drain LCM and every UDP port."""
         if timeout_s > 0:
+            if not self._fds:
+                self.stop_event.wait(timeout_s)
+                return
             try:
-                select.select(self._fds, [], [], timeout_s)
+                if not self._poller.poll(timeout_s * 1e3):
+                    return
             except InterruptedError:
                 pass
         self.bus.handle_pending()
-        for port in self.ports.values():
-            if isinstance(port, UdpReceiver):
-                port.drain()
+        for port in self._udp_in:
+            port.drain()
 
     def _stale_and_errors(self) -> None:
         self.timer.stale_skipped_total = sum(p.stale_skipped for p in self.ports.values())
@@ -169,10 +198,14 @@ class LiveRunner:
 
     def _maybe_report(self, now_ns: int) -> None:
         if self.timer.due(now_ns):
-            self._stale_and_errors()
-            msg = self.timer.report(now_ns)
-            msg.header.source = self.proc.name
-            self.bus.publish(self.profile.timing_channel, msg)
+            self._report(now_ns)
+
+    def _report(self, now_ns: int) -> None:
+        self._stale_and_errors()
+        node = self.node
+        msg = self.timer.report(now_ns, node.status(), node.health(), node.counters())
+        msg.header.source = self.proc.name
+        self.bus.publish(self.profile.timing_channel, msg)
 
     # -- the loops -------------------------------------------------------------------------
     def run(self, duration_s: float | None = None) -> int:
@@ -184,6 +217,9 @@ class LiveRunner:
             gc.collect()
             gc.freeze()
             gc.disable()
+        now = time.monotonic_ns()
+        self.timer.start(now)
+        self._report(now)  # the first TIMING: set up and running (the supervisor's "ready")
         end_ns = time.monotonic_ns() + int(duration_s * 1e9) if duration_s else None
         receiver = None
         if self.node.receive_thread and self.node.trigger_role is not None:
@@ -218,26 +254,34 @@ class LiveRunner:
             signal.signal(sig, lambda *_: self.stop_event.set())
 
     def _run_periodic(self, end_ns: int | None) -> None:
-        period_ns = int((self.node.period_s or 0.001) * 1e9)
-        deadline_ns = int((self.node.deadline_s or self.node.period_s or 0.001) * 1e9)
+        period_s = self.node.period_s or 0.001
+        period_ns = int(period_s * self.wall_per_sim * 1e9)
+        period_us = round(period_s * 1e6)  # sim time per slot
+        deadline_ns = int((self.node.deadline_s or period_s) * self.wall_per_sim * 1e9)
         age_role = next(iter(self.node.inputs), None)
         t0 = time.monotonic_ns()
         k = 0
         timer = self.timer
+        thread_ns = time.thread_time_ns
+        mono_ns = time.monotonic_ns
         while not self.stop_event.is_set():
             scheduled = t0 + k * period_ns
-            wait = scheduled - time.monotonic_ns()
-            while wait > self.spin_ns:  # sleep in select (inputs may wake it), then spin
-                self._poll((wait - self.spin_ns) / 1e9)
-                wait = scheduled - time.monotonic_ns()
-            while time.monotonic_ns() < scheduled:
-                pass
-            start = time.monotonic_ns()
+            wait = scheduled - mono_ns()
+            while wait > 0:  # one sleep per slot (in pieces of at most 50 ms, to stay stoppable)
+                time.sleep(min(wait, 50_000_000) / 1e9)
+                wait = scheduled - mono_ns()
+                if wait > 0:
+                    self._maybe_report(scheduled - wait)
+                    if self.stop_event.is_set():
+                        return
+            start = mono_ns()
+            c0 = thread_ns()
             self._poll(0.0)
-            self.ctx.now_utime = (scheduled - t0) // 1000
+            self.ctx.now_utime = k * period_us
             self.inbox._trigger = None
             self.node.tick(self.ctx, self.inbox)
-            end = time.monotonic_ns()
+            end = mono_ns()
+            cpu = thread_ns() - c0
             age = -1
             if age_role is not None:
                 last = self.ports[age_role].peek()
@@ -245,7 +289,7 @@ class LiveRunner:
                 if sent:
                     age = end - sent
             timer.last_utime = self.ctx.now_utime
-            timer.record(start, end, start - scheduled, age, end > scheduled + deadline_ns)
+            timer.record(start, end, start - scheduled, age, end > scheduled + deadline_ns, cpu)
             k += 1
             next_slot = t0 + k * period_ns
             if end > next_slot:  # fell behind: skip the missed slots, never catch up in a burst
@@ -269,7 +313,7 @@ class LiveRunner:
         role = self.node.trigger_role
         assert role is not None
         port = self.ports[role]
-        deadline_ns = int((self.node.deadline_s or 0.0) * 1e9)
+        deadline_ns = int((self.node.deadline_s or 0.0) * self.wall_per_sim * 1e9)
         timeout_s = getattr(self.node, "trigger_timeout_s", None)
         last_trigger_ns = time.monotonic_ns()
         poll_s = 0.05 if timeout_s is None else min(0.05, timeout_s)
@@ -293,7 +337,11 @@ class LiveRunner:
                 else:
                     msg = port.latest()
                     if msg is not None:
-                        self._tick_on(msg, port, deadline_ns)
+                        gate = self.rate_gate
+                        if gate is None or gate.admit(_utime(msg)):
+                            self._tick_on(msg, port, deadline_ns)
+                        else:
+                            self.timer.rate_skipped_total += 1
                 last_trigger_ns = time.monotonic_ns()
             elif timeout_s is not None and now - last_trigger_ns > timeout_s * 1e9:
                 self.inbox._trigger = None
@@ -306,6 +354,7 @@ class LiveRunner:
 
     def _tick_on(self, msg: Any, port: Port, deadline_ns: int) -> None:
         start = time.monotonic_ns()
+        c0 = time.thread_time_ns()
         sent = _send_ns(msg) or port.last_receive_ns
         utime = _utime(msg)
         if utime:
@@ -313,6 +362,7 @@ class LiveRunner:
         self.inbox._trigger = msg
         self.node.tick(self.ctx, self.inbox)
         end = time.monotonic_ns()
+        cpu = time.thread_time_ns() - c0
         self.timer.last_utime = self.ctx.now_utime
         missed = deadline_ns > 0 and end - sent > deadline_ns
-        self.timer.record(start, end, start - sent, end - sent, missed)
+        self.timer.record(start, end, start - sent, end - sent, missed, cpu)

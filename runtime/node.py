@@ -17,13 +17,68 @@ PortType = type
 
 TriggerPolicy = Literal["newest", "each"]
 
+#: ``Node.health``: what the supervisor makes of a process beyond its being alive
+HEALTH_OK, HEALTH_WARNING, HEALTH_FAULT = 0, 1, 2
+
+
+class SlotGate:
+    """At most one event per slot of sim time: slot = utime // period_us.
+
+    Used for a message-driven loop's ``max_rate_hz`` (the first trigger of each slot ticks, so
+    a 1 kHz OSC on 2 kHz states ticks on every other state, and after a lost state on the next
+    one) and for decimated outputs (``output_rate_hz``). Sim time, not the wall clock, so the
+    harness and a live run decimate alike. Time going backwards (a sim restart) opens a slot.
+    """
+
+    __slots__ = ("_last", "period_us")
+
+    def __init__(self, rate_hz: float) -> None:
+        self.period_us = max(1, round(1e6 / rate_hz))
+        self._last = -1
+
+    def open(self, utime: int) -> bool:
+        """True when ``utime`` falls in a slot that has not admitted an event yet."""
+        return utime // self.period_us != self._last
+
+    def admit(self, utime: int) -> bool:
+        """``open``, and if so take the slot."""
+        slot = utime // self.period_us
+        if slot == self._last:
+            return False
+        self._last = slot
+        return True
+
+
+class OutputGates:
+    """The ``output_rate_hz`` of a node's outputs: one ``SlotGate`` per decimated role."""
+
+    def __init__(self, rates: Mapping[str, float]) -> None:
+        self._gates = {role: SlotGate(hz) for role, hz in rates.items()}
+        self.dropped = 0  # messages left out between slots
+
+    def due(self, role: str, utime: int) -> bool:
+        gate = self._gates.get(role)
+        return gate is None or gate.open(utime)
+
+    def admit(self, role: str, utime: int) -> bool:
+        gate = self._gates.get(role)
+        if gate is None or gate.admit(utime):
+            return True
+        self.dropped += 1
+        return False
+
 
 class Context(Protocol):
     """What a node may do from ``setup`` and ``tick``: publish and read the sim clock."""
 
     def publish(self, role: str, msg: Any) -> None:
         """Send ``msg`` on the output ``role``. LCM messages get ``header.seq``,
-        ``header.send_mono_ns`` and ``header.source`` filled in; the node sets ``header.utime``."""
+        ``header.send_mono_ns`` and ``header.source`` filled in; the node sets ``header.utime``.
+        An output with an ``output_rate_hz`` is dropped outside its slots (see ``due``)."""
+
+    def due(self, role: str) -> bool:
+        """Whether ``publish(role, ...)`` would send now (False for a decimated output between
+        its slots): a node may skip building a message nobody will receive."""
 
     @property
     def now_utime(self) -> int:
@@ -82,5 +137,16 @@ class Node:
         """Called once at shutdown; release sockets, files, threads."""
 
     def status(self) -> str:
-        """A short human-readable status line for the supervisor and logs."""
+        """A short human-readable status line for the supervisor and logs (sent with every
+        TIMING message, about ten times a second: keep it cheap)."""
         return "ok"
+
+    def health(self) -> int:
+        """``HEALTH_OK``, ``HEALTH_WARNING`` or ``HEALTH_FAULT`` (a controller in safe mode, a
+        robot that fell): a supervised ``--duration`` run fails on a fault."""
+        return HEALTH_OK
+
+    def counters(self) -> Mapping[str, float]:
+        """The node's own running counts (packets, steps, published states...), sent with its
+        TIMING messages so reports can check them (e.g. a state for every sim packet)."""
+        return {}

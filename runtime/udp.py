@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import select
 import socket
 
 from runtime.errors import BusError
@@ -37,6 +38,8 @@ class UdpReceiver(PortBuffer):
             ) from exc
         self.sock.setblocking(False)
         self._buf = bytearray(65536)
+        self._ready = select.poll()  # a waiting datagram, without a failed (raising) read
+        self._ready.register(self.sock.fileno(), select.POLLIN)
 
     def fileno(self) -> int:
         return self.sock.fileno()
@@ -44,13 +47,14 @@ class UdpReceiver(PortBuffer):
     def drain(self) -> int:
         """Read every datagram waiting in the socket; returns how many."""
         n = 0
-        while True:
+        ready, sock, buf = self._ready.poll, self.sock, self._buf
+        while ready(0):
             try:
-                size = self.sock.recv_into(self._buf)
-            except (BlockingIOError, InterruptedError):
+                size = sock.recv_into(buf)
+            except OSError:
                 break
             self._stamp_arrival()
-            self.put(bytes(self._buf[:size]))
+            self.put(bytes(buf[:size]))
             n += 1
         return n
 
