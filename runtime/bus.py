@@ -1,18 +1,31 @@
-"""The LCM bus as control loops want it: newest-message subscriptions, counted decode errors.
+"""The LCM bus as control loops want it: newest-message subscriptions, counted decode errors,
+and one LCM domain per emulated host.
 
 LCM queues the *oldest* messages when a subscriber falls behind; a control loop wants the
 newest. A ``newest`` subscription keeps only the last raw message of its channel (counting the
 ones it skipped) and decodes it on demand; an ``each`` subscription keeps every message in order
 (for estimators and loggers). Bytes that are not the subscribed type are counted and dropped,
-never raised into the loop. Channels named ``NETWORK_*`` are published with ttl 1 (they cross
-from the NUC to the laptop), the rest with ttl 0, as on the robot.
+never raised into the loop.
+
+Domains: on the robot, ttl-0 traffic never leaves the NUC, so the laptop never pays for the
+NUC's 2 kHz channels and the NUC never hears the laptop's maps. Here all hosts are one machine,
+so each host's local channels go to a multicast port of its own (``hw_config/hosts.yaml``), and
+the channels that cross between hosts (``NETWORK_*``, and those declared ``scope: network``) to
+the shared "network" port, with ttl 1. A process joins only the domains of the channels it
+subscribes to (every datagram on a joined port reaches it, subscribed or not), and a process
+that only publishes joins none.
+
+Receiving reads the multicast sockets in the loop's own thread (``runtime.udpm``: LCM's wire
+format, without LCM's receive thread and its ~30 us hand-off per message on this VM);
+publishing goes through ``lcm.LCM``.
 """
 
 from __future__ import annotations
 
 import logging
+import select
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 from urllib.parse import parse_qsl, urlencode, urlparse, urlunparse
 
@@ -21,11 +34,14 @@ import lcm
 from runtime.errors import BusError, MulticastRouteError
 from runtime.port_buffer import Policy, PortBuffer
 from runtime.route import FIX_HINT, check_multicast_route, has_multicast_route, multicast_group
+from runtime.udpm import UdpmReceiver
 
 log = logging.getLogger(__name__)
 
 
 DEFAULT_URL = "udpm://239.255.76.67:7667"
+#: the domain shared by every host: channels that cross between them
+NETWORK = "network"
 
 
 def with_query(url: str, **params: object) -> str:
@@ -96,21 +112,85 @@ DEFAULT_RECV_BUF = 2 << 20
 
 
 class Bus:
-    """LCM with per-channel ttl, newest-message subscriptions and header stamping."""
+    """LCM over one or more domains (one multicast port each), with per-channel ttl,
+    newest-message subscriptions and header stamping.
+
+    ``domains`` maps a domain name ("network", a host name) to its LCM URL and
+    ``channel_domains`` a channel name to its domain (``Profile.domains`` and
+    ``Profile.channel_domains``); a channel not listed there lives on the "network" domain,
+    whose URL is ``url``. Without either, everything is on ``url``, as one shared bus.
+    """
 
     def __init__(
         self,
         url: str = DEFAULT_URL,
         source: str = "",
         recv_buf_size: int | None = DEFAULT_RECV_BUF,
+        domains: Mapping[str, str] | None = None,
+        channel_domains: Mapping[str, str] | None = None,
     ) -> None:
         self.url = url
         self.source = source
-        self._lc = make_lcm(with_query(url, ttl=0, recv_buf_size=recv_buf_size))
-        self._lc_network: lcm.LCM | None = None  # ttl=1 publisher, made on first use
+        self.recv_buf_size = recv_buf_size
+        self.domains: dict[str, str] = dict(domains or {})
+        self.domains.setdefault(NETWORK, url)
+        self.channel_domains: dict[str, str] = dict(channel_domains or {})
+        if url.startswith("udpm://"):
+            check_multicast_route(url)
+        self._rx: dict[str, UdpmReceiver] = {}  # one socket per domain URL, joined on first use
+        self._tx: dict[tuple[str, int], lcm.LCM] = {}  # publishing instance per (URL, ttl)
         self._subs: dict[str, Subscription] = {}
-        self._raw_subs: list[Any] = []
         self._seq: dict[str, int] = {}
+        self._route: dict[str, tuple[str, int]] = {}  # channel -> (URL, ttl), memoised
+
+    @classmethod
+    def for_profile(cls, profile: Any, source: str = "", **kw: Any) -> Bus:
+        """A bus over ``profile``'s domains (``runtime.config_types.Profile``)."""
+        return cls(profile.lcm_url, source, domains=profile.domains,
+                   channel_domains=profile.channel_domains, **kw)
+
+    # -- routing ---------------------------------------------------------------------------
+    def domain_of(self, channel: str) -> str:
+        return self.channel_domains.get(channel, NETWORK)
+
+    def route(self, channel: str) -> tuple[str, int]:
+        """(LCM URL, ttl) of ``channel``: ttl 1 on the network domain for ``NETWORK_*`` and
+        channels declared network-scoped, else 0."""
+        r = self._route.get(channel)
+        if r is None:
+            domain = self.domain_of(channel)
+            url = self.domains.get(domain, self.url)
+            crosses = channel.startswith("NETWORK_") or self.channel_domains.get(channel) == NETWORK
+            r = (url, 1 if crosses else 0)
+            self._route[channel] = r
+        return r
+
+    def urls(self) -> list[str]:
+        """Every distinct domain URL (for tools that listen to all of them)."""
+        return list(dict.fromkeys(self.domains.values()))
+
+    def _receiver(self, url: str) -> UdpmReceiver:
+        rx = self._rx.get(url)
+        if rx is None:
+            if url.startswith("udpm://"):
+                check_multicast_route(url)
+            try:
+                rx = UdpmReceiver(url, self.recv_buf_size)
+            except OSError as exc:
+                raise BusError(
+                    f"cannot listen to LCM on {url!r} ({exc.strerror}). Check the URL in "
+                    "hw_config/hosts.yaml (lcm.url) and that multicast is enabled on the "
+                    "interface (`ip link show lo` should say MULTICAST)."
+                ) from exc
+            self._rx[url] = rx
+        return rx
+
+    def _sender(self, url: str, ttl: int) -> lcm.LCM:
+        lc = self._tx.get((url, ttl))
+        if lc is None:
+            lc = make_lcm(with_query(url, ttl=ttl))
+            self._tx[(url, ttl)] = lc
+        return lc
 
     # -- receiving -------------------------------------------------------------------------
     def subscribe(
@@ -119,50 +199,62 @@ class Bus:
         msg_type: type | None,
         policy: Policy = "newest",
         capacity: int = 4096,
-        lcm_queue: int = 1000,
     ) -> Subscription:
-        """Subscribe to ``channel``; ``msg_type`` None keeps raw bytes."""
+        """Subscribe to ``channel`` on its domain; ``msg_type`` None keeps raw bytes."""
         if channel in self._subs:
             return self._subs[channel]
         sub = Subscription(channel, msg_type, policy, capacity)
-        handle = self._lc.subscribe(_exact(channel), sub._on_message)
-        handle.set_queue_capacity(lcm_queue)
+        self._receiver(self.route(channel)[0]).subscribe(channel, sub._on_message)
         self._subs[channel] = sub
         return sub
 
     def subscribe_raw(
-        self, pattern: str, callback: Callable[[str, bytes], None], lcm_queue: int = 100000
+        self,
+        pattern: str,
+        callback: Callable[[str, bytes], None],
+        urls: list[str] | None = None,
     ) -> None:
-        """Every message on channels matching the regex ``pattern``, raw, for loggers/dashboards."""
-        handle = self._lc.subscribe(pattern, callback)
-        handle.set_queue_capacity(lcm_queue)
-        self._raw_subs.append(handle)
+        """Every message on channels matching ``pattern`` (a channel name, or a regex matched
+        in full), raw, for loggers and dashboards: on the domain of the channel it names (the
+        network domain for a regex), or on each of ``urls``."""
+        plain = pattern.replace("\\", "").strip("^$")
+        if urls is None:
+            urls = [self.route(plain)[0]]
+        exact = plain if plain.replace("_", "").isalnum() else pattern.strip("^$")
+        for url in dict.fromkeys(urls):
+            self._receiver(url).subscribe(exact, callback)
+
+    def filenos(self) -> list[int]:
+        """The file descriptors that become readable when a message arrives (one per joined
+        domain; none for a bus that only publishes)."""
+        return [rx.fileno() for rx in self._rx.values()]
 
     def fileno(self) -> int:
-        return self._lc.fileno()
+        """The one descriptor of a single-domain bus (see ``filenos``)."""
+        fds = self.filenos()
+        if len(fds) != 1:
+            raise BusError(f"this bus listens on {len(fds)} domains: use filenos()")
+        return fds[0]
 
     def drain(self, timeout_s: float = 0.0) -> int:
         """Wait up to ``timeout_s`` for traffic, then handle everything pending; returns count."""
-        n = 0
-        if self._handle(max(0, int(timeout_s * 1000))):
-            n = 1
-            while self._handle(0):
-                n += 1
-        return n
+        fds = self.filenos()
+        if not fds:
+            if timeout_s > 0:
+                time.sleep(timeout_s)
+            return 0
+        try:
+            ready, _, _ = select.select(fds, [], [], max(0.0, timeout_s))
+        except InterruptedError:
+            return 0
+        return self.handle_pending() if ready else 0
 
     def handle_pending(self) -> int:
-        """Handle every message already queued without waiting."""
+        """Handle every message already waiting, on every domain, without waiting."""
         n = 0
-        while self._handle(0):
-            n += 1
+        for rx in self._rx.values():
+            n += rx.drain()
         return n
-
-    def _handle(self, timeout_ms: int) -> bool:
-        try:
-            return self._lc.handle_timeout(timeout_ms) > 0
-        except OSError:
-            # LCM's select was interrupted by a signal (SIGINT on shutdown): nothing handled.
-            return False
 
     @property
     def decode_errors(self) -> int:
@@ -186,34 +278,16 @@ class Bus:
             header.source = self.source
 
     def publish(self, channel: str, msg: Any) -> None:
-        """Stamp and publish an lcm-gen message (or raw bytes) on ``channel``."""
+        """Stamp and publish an lcm-gen message (or raw bytes) on ``channel``'s domain."""
         if isinstance(msg, (bytes, bytearray)):
             data = bytes(msg)
         else:
             self.stamp(channel, msg)
             data = msg.encode()
-        self._lcm_for(channel).publish(channel, data)
-
-    def _lcm_for(self, channel: str) -> lcm.LCM:
-        if not channel.startswith("NETWORK_"):
-            return self._lc
-        if self._lc_network is None:
-            self._lc_network = make_lcm(with_query(self.url, ttl=1))
-        return self._lc_network
+        self._sender(*self.route(channel)).publish(channel, data)
 
     def close(self) -> None:
-        for sub in list(self._raw_subs):
-            try:
-                self._lc.unsubscribe(sub)
-            except Exception:
-                pass
-        self._raw_subs.clear()
-        self._lc = None  # type: ignore[assignment]
-        self._lc_network = None
-
-
-def _exact(channel: str) -> str:
-    """LCM subscribes by regex: escape a literal channel name so ``A.B`` does not match ``AxB``."""
-    import re
-
-    return re.escape(channel)
+        for rx in self._rx.values():
+            rx.close()
+        self._rx.clear()
+        self._tx.clear()

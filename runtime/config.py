@@ -15,10 +15,12 @@ import importlib.util
 import os
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlparse, urlunparse
 
 import yaml
 
 from runtime.config_types import (
+    NETWORK,
     ChannelConfig,
     HostConfig,
     ProcessConfig,
@@ -39,6 +41,7 @@ PROFILE_KEYS = {
     "launch",
     "overrides",
     "timing_report_hz",
+    "rtf",
     "lcm",
     "hosts",
     "channels",
@@ -58,7 +61,10 @@ PROCESS_KEYS = {
     "required",
     "cpu_affinity",
     "nice",
+    "rt_priority",
     "gc",
+    "max_rate_hz",
+    "output_rate_hz",
     "params",
     "gains",
     "description",
@@ -66,6 +72,11 @@ PROCESS_KEYS = {
 }
 RESTART_KEYS = {"policy", "max_restarts", "window_s", "backoff_initial_s", "backoff_max_s"}
 MODES = ("realtime", "lockstep")
+#: how the hosts' local (ttl-0) traffic is kept apart on this one machine: ``ports`` gives each
+#: host a multicast port of its own (the network URL's port + the host's lcm_port_offset), as
+#: the real robot's ttl 0 keeps the NUC's 2 kHz traffic off the laptop; ``shared`` puts every
+#: host on the one network URL (every process hears everything)
+HOST_BUSES = ("ports", "shared")
 RESTART_POLICIES = ("always", "on-failure", "never")
 
 
@@ -245,12 +256,13 @@ def load_profile(path: str | Path) -> Profile:
         "processes": {},
     }
     lcm_url: tuple[str, Path] | None = None
+    host_buses: tuple[str, Path] = ("ports", path)
     seen: list[Path] = []
     stack: list[Path] = []
     all_overrides: list[tuple[str, dict[str, Any], Path]] = []  # in include order, top last
 
     def absorb(file: Path, data: dict[str, Any]) -> None:
-        nonlocal lcm_url
+        nonlocal lcm_url, host_buses
         ck = _Checker(file)
         if file in stack:
             chain = " -> ".join(p.name for p in [*stack, file])
@@ -277,15 +289,18 @@ def load_profile(path: str | Path) -> Profile:
                 all_overrides.append((str(pname), ck.mapping(value, f"overrides.{pname}"), file))
         if "lcm" in data:
             lcm = ck.mapping(data["lcm"], "lcm")
-            ck.known_keys(lcm, "lcm", {"url"})
-            url = ck.string(lcm, "lcm", "url")
-            if not (url.startswith("udpm://") or url.startswith("memq://")):
-                raise ck.fail(
-                    "lcm.url",
-                    f"{url!r} is not an LCM URL",
-                    allowed="udpm://GROUP:PORT (or memq:// for one process)",
-                )
-            lcm_url = (url, file)
+            ck.known_keys(lcm, "lcm", {"url", "host_buses"})
+            if "url" in lcm:
+                url = ck.string(lcm, "lcm", "url")
+                if not (url.startswith("udpm://") or url.startswith("memq://")):
+                    raise ck.fail(
+                        "lcm.url",
+                        f"{url!r} is not an LCM URL",
+                        allowed="udpm://GROUP:PORT (or memq:// for one process)",
+                    )
+                lcm_url = (url, file)
+            if "host_buses" in lcm:
+                host_buses = (ck.string(lcm, "lcm", "host_buses", choices=HOST_BUSES), file)
         for section in sections:
             if section in data:
                 entries = ck.mapping(data[section], section)
@@ -299,6 +314,10 @@ def load_profile(path: str | Path) -> Profile:
     name = ck.string(data, "", "profile", default=path.stem)
     mode = ck.string(data, "", "mode", default="realtime", choices=MODES)
     report_hz = ck.number(data, "", "timing_report_hz", default=10.0, lo=0.1, hi=100.0)
+    rtf = ck.number(data, "", "rtf", default=1.0, lo=0.01, hi=1.0)
+    if rtf != 1.0 and mode != "realtime":
+        raise ck.fail("rtf", f"a real-time factor of {rtf:g} needs mode: realtime",
+                      allowed="1.0 in lockstep")
     url = os.environ.get("CASSIE_LCM_URL") or (
         lcm_url[0] if lcm_url else "udpm://239.255.76.67:7667"
     )
@@ -307,14 +326,23 @@ def load_profile(path: str | Path) -> Profile:
     for hname, (value, file) in sections["hosts"].items():
         hc = _Checker(file)
         h = hc.mapping(value, f"hosts.{hname}")
-        hc.known_keys(h, f"hosts.{hname}", {"address", "description"})
+        hc.known_keys(h, f"hosts.{hname}", {"address", "description", "lcm_port_offset"})
         hosts[hname] = HostConfig(
-            hname, hc.string(h, f"hosts.{hname}", "address"), str(h.get("description", ""))
+            hname,
+            hc.string(h, f"hosts.{hname}", "address"),
+            str(h.get("description", "")),
+            hc.number(h, f"hosts.{hname}", "lcm_port_offset", default=0, lo=0, hi=1000,
+                      integer=True),
         )
 
     channels = {
         cname: _channel(cname, value, file) for cname, (value, file) in sections["channels"].items()
     }
+    for cname, (_, file) in sections["channels"].items():
+        scope = channels[cname].scope
+        if scope and scope != NETWORK and scope not in hosts:
+            raise _Checker(file).fail(f"channels.{cname}.scope", f"unknown scope {scope!r}",
+                                      allowed=", ".join(["network", "host", *sorted(hosts)]))
 
     for pname, _, ofile in all_overrides:
         if pname not in sections["processes"]:
@@ -354,6 +382,7 @@ def load_profile(path: str | Path) -> Profile:
                     f"{pname} depends on {dep}, which this profile does not launch",
                     allowed=", ".join(sorted(processes)),
                 )
+    domains, channel_domains = _domains(url, host_buses, hosts, channels, processes, launch)
     sup = ck.mapping(data.get("supervisor") or {}, "supervisor")
     ck.known_keys(sup, "supervisor", {"status_channel", "orders_channel", "timing_channel"})
     # Relative paths in params (terrains, ...) resolve against hw_config/ when the profile builds
@@ -374,7 +403,84 @@ def load_profile(path: str | Path) -> Profile:
         status_channel=ck.string(sup, "supervisor", "status_channel", default="SUPERVISOR_STATUS"),
         orders_channel=ck.string(sup, "supervisor", "orders_channel", default="SUPERVISOR_ORDERS"),
         timing_channel=ck.string(sup, "supervisor", "timing_channel", default="TIMING"),
+        domains=domains,
+        channel_domains=channel_domains,
+        rtf=rtf,
     )
+
+
+def _domains(
+    url: str,
+    host_buses: tuple[str, Path],
+    hosts: dict[str, HostConfig],
+    channels: dict[str, ChannelConfig],
+    processes: dict[str, ProcessConfig],
+    launch: list[str],
+) -> tuple[dict[str, str], dict[str, str]]:
+    """The LCM domains (name -> URL) and the domain of every channel, checked against the
+    launched processes: a host-local channel is published from one host only, and only
+    processes on that host subscribe to it (on the robot, ttl 0 never leaves the host)."""
+    mode, mode_file = host_buses
+    domains = {NETWORK: url}
+    if url.startswith("udpm://"):
+        base = urlparse(url)
+        for i, h in enumerate(hosts.values()):
+            if mode == "shared":
+                domains[h.name] = url
+                continue
+            # a host without an offset gets the next port, in the order the hosts are listed
+            port = (base.port or 7667) + (h.lcm_port_offset or i + 1)
+            domains[h.name] = urlunparse(base._replace(netloc=f"{base.hostname}:{port}"))
+        ports = [d for d in domains.values()]
+        if mode == "ports" and len(set(ports)) != len(ports):
+            raise ConfigError(str(mode_file), "hosts", "two hosts share an lcm_port_offset",
+                              allowed="a different offset for each host")
+    else:  # memq:// (one process): one bus
+        domains.update({h: url for h in hosts})
+    pubs: dict[str, set[str]] = {}
+    subs: dict[str, list[tuple[ProcessConfig, str]]] = {}
+    for pname in launch:
+        proc = processes[pname]
+        for ch in proc.outputs.values():
+            if not ch.is_udp:
+                pubs.setdefault(ch.name, set()).add(proc.host)
+        for role, ch in proc.inputs.items():
+            if not ch.is_udp:
+                subs.setdefault(ch.name, []).append((proc, role))
+    out: dict[str, str] = {}
+    for ch in channels.values():
+        if ch.is_udp:
+            continue
+        if ch.ttl == 1:
+            domain = NETWORK
+        elif ch.scope:
+            domain = ch.scope
+        else:
+            where = pubs.get(ch.name) or {p.host for p, _ in subs.get(ch.name, [])}
+            if len(where) > 1:
+                proc = next(p for p, _ in subs.get(ch.name, [])) if ch.name in subs else None
+                file = proc.source_file if proc else mode_file
+                raise ConfigError(
+                    str(file), f"channels.{ch.key}",
+                    f"{ch.name} is local to one host (ttl 0) but is used on hosts "
+                    f"{', '.join(sorted(where))}",
+                    allowed="a NETWORK_ name, `scope: network`, or `scope: HOST` in "
+                    "channels.yaml",
+                )
+            domain = next(iter(where)) if where else NETWORK
+        out[ch.name] = domain
+        if domain == NETWORK:
+            continue
+        for proc, role in subs.get(ch.name, []):
+            if proc.host != domain:
+                raise ConfigError(
+                    str(proc.source_file), proc.key("inputs", role),
+                    f"{ch.name} stays on host {domain} (ttl 0), but {proc.name} runs on "
+                    f"{proc.host} and would never receive it",
+                    allowed="a channel that crosses hosts (NETWORK_ name or `scope: network` "
+                    "in channels.yaml), or run the process on " + domain,
+                )
+    return domains, out
 
 
 def _blame_override(
@@ -408,7 +514,7 @@ def _channel(cname: str, value: Any, file: Path) -> ChannelConfig:
             )
         return ChannelConfig(cname, value)
     d = ck.mapping(value, key)
-    ck.known_keys(d, key, {"udp", "name"})
+    ck.known_keys(d, key, {"udp", "name", "scope"})
     if "udp" in d:
         addr = ck.string(d, key, "udp")
         host, _, port_s = addr.rpartition(":")
@@ -417,7 +523,14 @@ def _channel(cname: str, value: Any, file: Path) -> ChannelConfig:
                 f"{key}.udp", f"{addr!r} is not HOST:PORT", allowed="e.g. 127.0.0.1:25000"
             )
         return ChannelConfig(cname, f"udp:{addr}", udp=(host, int(port_s)))
-    return ChannelConfig(cname, ck.string(d, key, "name"))
+    name = ck.string(d, key, "name")
+    if not name.replace("_", "").isalnum():
+        raise ck.fail(f"{key}.name", f"{name!r} is not a valid LCM channel name",
+                      allowed="letters, digits and underscores")
+    scope = ck.string(d, key, "scope", default="")
+    if scope == "host":
+        scope = ""
+    return ChannelConfig(cname, name, scope=scope)
 
 
 def _process(
@@ -456,22 +569,17 @@ def _process(
     if not isinstance(deps, list) or not all(isinstance(x, str) for x in deps):
         raise ck.fail(f"{key}.depends_on", f"must be a list of process names, got {deps!r}")
     ready = ck.mapping(d.get("ready") or {}, f"{key}.ready")
-    ck.known_keys(ready, f"{key}.ready", {"channel", "timeout_s"})
-    ready_ch = None
-    if "channel" in ready:
-        cname = ck.string(ready, f"{key}.ready", "channel")
-        if cname not in channels:
-            raise ck.fail(
-                f"{key}.ready.channel",
-                f"unknown channel {cname!r}",
-                allowed=", ".join(sorted(channels)),
-            )
-        ready_ch = channels[cname]
-    else:
-        ready_ch = next((c for c in outputs.values() if not c.is_udp), None)
+    ck.known_keys(ready, f"{key}.ready", {"timeout_s"})
     ready_timeout = ck.number(
         ready, f"{key}.ready", "timeout_s", default=15.0, lo=0.0, lo_open=True
     )
+    max_rate = ck.number(d, key, "max_rate_hz", default=None, lo=0.0, hi=100000.0, lo_open=True)
+    out_rates = ck.mapping(d.get("output_rate_hz") or {}, f"{key}.output_rate_hz")
+    for role in out_rates:
+        if role not in outputs:
+            raise ck.fail(f"{key}.output_rate_hz.{role}", "not an output of this process",
+                          allowed=", ".join(sorted(outputs)))
+        ck.number(out_rates, f"{key}.output_rate_hz", role, lo=0.0, hi=100000.0, lo_open=True)
     r = ck.mapping(d.get("restart") or {}, f"{key}.restart")
     ck.known_keys(r, f"{key}.restart", RESTART_KEYS)
     restart = RestartPolicy(
@@ -497,6 +605,7 @@ def _process(
             allowed=f"CPU numbers 0..{(os.cpu_count() or 1) - 1}",
         )
     nice = ck.number(d, key, "nice", default=None, lo=-20, hi=19, integer=True)
+    rt_priority = ck.number(d, key, "rt_priority", default=None, lo=1, hi=99, integer=True)
     gains = d.get("gains")
     gains_file = None
     if gains is not None:
@@ -518,12 +627,14 @@ def _process(
         inputs=inputs,
         outputs=outputs,
         depends_on=tuple(deps),
-        ready_channel=ready_ch,
         ready_timeout_s=ready_timeout,
         restart=restart,
         required=ck.boolean(d, key, "required", True),
         cpu_affinity=tuple(aff) if aff else None,
         nice=nice,
+        rt_priority=rt_priority,
+        max_rate_hz=max_rate,
+        output_rate_hz={str(k): float(v) for k, v in out_rates.items()},
         gc=ck.string(d, key, "gc", default="freeze", choices=("on", "freeze")),
         params=params,
         gains_file=gains_file,

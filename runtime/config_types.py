@@ -10,13 +10,24 @@ Mode = Literal["realtime", "lockstep"]
 RestartKind = Literal["always", "on-failure", "never"]
 
 
+#: the LCM domain shared by every host (``runtime.bus.NETWORK``)
+NETWORK = "network"
+
+
 @dataclass(frozen=True)
 class ChannelConfig:
-    """One named link: an LCM channel, or a UDP address the receiver binds and senders target."""
+    """One named link: an LCM channel, or a UDP address the receiver binds and senders target.
+
+    ``scope`` says which LCM domain carries it: ``network`` (it crosses between hosts, ttl 1:
+    every ``NETWORK_*`` channel, and those declared so), a host name (it lives on that host's
+    bus, as a camera's cable ends at one computer), or "" (it stays on the host of the process
+    that publishes it, ttl 0).
+    """
 
     key: str
     name: str  # LCM channel name, or "udp:HOST:PORT" for a UDP link
     udp: tuple[str, int] | None = None
+    scope: str = ""
 
     @property
     def is_udp(self) -> bool:
@@ -24,8 +35,8 @@ class ChannelConfig:
 
     @property
     def ttl(self) -> int:
-        """LCM ttl: 1 for channels that cross NUC <-> laptop (``NETWORK_`` prefix), else 0."""
-        return 1 if self.name.startswith("NETWORK_") else 0
+        """LCM ttl: 1 for channels that cross NUC <-> laptop, else 0."""
+        return 1 if self.scope == NETWORK or self.name.startswith("NETWORK_") else 0
 
 
 @dataclass(frozen=True)
@@ -52,13 +63,18 @@ class ProcessConfig:
     inputs: dict[str, ChannelConfig] = field(default_factory=dict)  # role -> channel
     outputs: dict[str, ChannelConfig] = field(default_factory=dict)
     depends_on: tuple[str, ...] = ()
-    ready_channel: ChannelConfig | None = None  # first message here = ready
-    ready_timeout_s: float = 10.0
+    ready_timeout_s: float = 10.0  # its first TIMING message (sent after setup) within this
     restart: RestartPolicy = field(default_factory=RestartPolicy)
     required: bool = True
     cpu_affinity: tuple[int, ...] | None = None
     nice: int | None = None
+    rt_priority: int | None = None  # SCHED_FIFO priority (1-99) the process asks for, if any
     gc: Literal["on", "freeze"] = "freeze"  # control loops freeze and disable the collector
+    #: message-driven: at most one tick per 1/max_rate_hz of sim time (the first trigger of
+    #: each slot; the rest are counted as rate-skipped), as a 1 kHz OSC on 2 kHz states
+    max_rate_hz: float | None = None
+    #: output role -> at most this many messages per second of sim time (debug streams)
+    output_rate_hz: dict[str, float] = field(default_factory=dict)
     params: dict[str, Any] = field(default_factory=dict)  # free-form, validated by the process
     gains_file: Path | None = None
     harness_delay_ms: float = 0.0  # modelled compute latency in the deterministic harness
@@ -73,6 +89,7 @@ class HostConfig:
     name: str
     address: str
     description: str = ""
+    lcm_port_offset: int = 0  # this host's own LCM domain: the network URL's port + this
 
 
 @dataclass(frozen=True)
@@ -92,6 +109,13 @@ class Profile:
     status_channel: str = "SUPERVISOR_STATUS"
     orders_channel: str = "SUPERVISOR_ORDERS"
     timing_channel: str = "TIMING"
+    #: LCM domain name ("network", host names) -> URL; empty: everything on ``lcm_url``
+    domains: dict[str, str] = field(default_factory=dict)
+    #: LCM channel name -> its domain (for the launched processes); unlisted: "network"
+    channel_domains: dict[str, str] = field(default_factory=dict)
+    #: real-time factor of a ``realtime`` run: sim seconds per wall second (0.5 on a machine
+    #: too slow for 1); periods, deadlines and wall-clock budgets scale by 1 / rtf
+    rtf: float = 1.0
 
     def resolve(self, relative: str | Path) -> Path:
         """A path from a config value, relative to the hw_config folder."""

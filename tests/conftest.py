@@ -43,6 +43,15 @@ def lcm_url(monkeypatch: pytest.MonkeyPatch) -> str:
     return url
 
 
+def profile_bus(profile: str | Path, source: str = "test") -> Any:
+    """A bus over a profile's LCM domains (each host's own port, and the network), as the
+    profile's processes see them: load it after the ``lcm_url`` fixture has set the port."""
+    from runtime.bus import Bus
+    from runtime.config import load_profile
+
+    return Bus.for_profile(load_profile(profile), source=source)
+
+
 def cassie(*args: str, env: dict[str, str] | None = None, **kw: Any) -> subprocess.Popen[str]:
     """Start ``cassie ARGS`` as a real child process (its own process group)."""
     e = dict(os.environ)

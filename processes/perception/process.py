@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from lcmtypes import contact_t, depth_frame_t, elevation_map_t, robot_state_t
+from lcmtypes import depth_frame_t, elevation_map_t, robot_state_t
 from processes.kinematics import AlipKinematics
 from processes.perception.elevation_map import CropBox, ElevationMap, ElevationMapParams
 from runtime.config_types import ProcessConfig, Profile
@@ -59,7 +59,7 @@ class PerceptionNode(Node):
     """Depth frame in, elevation map out; see the module docstring."""
 
     name = "perception"
-    inputs = {"depth": depth_frame_t, "state": robot_state_t, "contact": contact_t}
+    inputs = {"depth": depth_frame_t, "state": robot_state_t}  # contacts: state.in_contact
     outputs = {"elevation_map": elevation_map_t}
     trigger_role = "depth"
     receive_thread = True  # frames keep arriving while the map updates (see the docstring)

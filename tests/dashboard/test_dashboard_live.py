@@ -13,7 +13,7 @@ import pytest
 
 from runtime.bus import Bus
 from runtime.config import HW_CONFIG_DIR
-from tests.conftest import cassie, wait_for
+from tests.conftest import cassie, profile_bus, wait_for
 from tests.dashboard import fake_stack
 from tests.dashboard.rrd import read_rrd, view_origins
 from tools.dashboard.collector import Collector
@@ -49,8 +49,8 @@ def test_headless_recording_of_a_short_run_has_every_view(
     # the processes of hw_config/sim.yaml
     profile = tmp_path / "dash.yaml"
     profile.write_text(
-        f"profile: dash\ninclude: [{HW_CONFIG_DIR / 'channels.yaml'}]\n"
-        "hosts: {nuc: {address: 127.0.0.1}}\n"
+        f"profile: dash\ninclude: [{HW_CONFIG_DIR / 'hosts.yaml'}, "
+        f"{HW_CONFIG_DIR / 'channels.yaml'}]\n"
         "processes:\n"
         "  ticker: {host: nuc, module: tests.procs.ticker, rate_hz: 10, outputs: {out: command}}\n"
         "launch: [ticker]\n"
@@ -58,7 +58,8 @@ def test_headless_recording_of_a_short_run_has_every_view(
     proc = cassie("dashboard", "--save", str(out), "--duration", "60", "--profile", str(profile))
     procs.append(proc)
     _wait_for_line(proc, "dashboard: listening", 30)
-    published = fake_stack.publish_for(Bus(lcm_url, source="fake"), 3.0)
+    # each channel on its LCM domain (a host's bus, or the network), as the stack publishes it
+    published = fake_stack.publish_for(profile_bus(profile, source="fake"), 3.0)
     proc.send_signal(signal.SIGTERM)  # as the launcher stops it: the file must be complete
     rest, _ = proc.communicate(timeout=30)
     assert proc.returncode == 0, rest

@@ -6,13 +6,13 @@ import time
 
 from lcmtypes import command_t, loop_timing_t
 from runtime.bus import Bus
-from tests.conftest import PROFILES, cassie, wait_for
+from tests.conftest import PROFILES, cassie, profile_bus, wait_for
 
 PROFILE = str(PROFILES / "runtime.yaml")
 
 
 def test_message_crosses_from_one_process_to_another(lcm_url, procs):
-    bus = Bus(lcm_url, source="test")
+    bus = profile_bus(PROFILE)  # TEST_TICK, TEST_ECHO: local to the host nuc
     echoed = bus.subscribe("TEST_ECHO", command_t)
     procs.append(cassie("run", "echo", "--profile", PROFILE, "--duration", "20"))
     procs.append(cassie("run", "ticker", "--profile", PROFILE, "--duration", "20"))
@@ -65,7 +65,7 @@ def test_burst_to_slow_subscriber_yields_newest_message(lcm_url, procs):
 
 
 def test_garbage_bytes_are_counted_and_subscriber_lives_on(lcm_url, procs):
-    bus = Bus(lcm_url, source="test")
+    bus = profile_bus(PROFILE)
     echoed = bus.subscribe("TEST_ECHO", command_t)
     timing = bus.subscribe("TIMING", loop_timing_t, policy="each")
     procs.append(cassie("run", "echo", "--profile", PROFILE, "--duration", "30"))

@@ -143,10 +143,13 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGINT, stop)
         signal.signal(signal.SIGTERM, stop)
 
+    prof = setup.profile
     collector = Collector(
         setup.lcm_url,
         setup.channels.capacities(args.buffer_scale),
         keep_bytes=setup.channels.keep_bytes(),
+        domains=prof.domains if prof is not None else None,
+        channel_domains=prof.channel_domains if prof is not None else None,
     )
     collector.start()  # listen first: the model and viewer set-up below take a second or two
     try:

@@ -1,18 +1,19 @@
 """The LCM side of the dashboard: a thread that only files raw messages into bounded buffers.
 
-The collector never decodes anything: its LCM callback appends the bytes to the channel's
+The collector never decodes anything: its callback appends the bytes to the channel's
 buffer and returns, so the dashboard keeps up with the bus whatever Rerun is doing. Each
 channel's buffer holds at most ``capacity`` messages; when it is full the oldest message is
 dropped and counted, so a slow or stalled batcher costs a bounded amount of memory and never
-pushes back on the publishers. LCM's own per-subscription queue is bounded the same way.
+pushes back on the publishers. It listens on the LCM domain of each channel it shows (a host's
+bus or the network: ``Profile.channel_domains``), and only on those.
 """
 
 from __future__ import annotations
 
 import logging
-import re
 import threading
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from runtime.bus import Bus
@@ -39,6 +40,8 @@ class Collector:
         capacities: dict[str, int],
         recv_buf_size: int | None = DEFAULT_RECV_BUF,
         keep_bytes: dict[str, int] | None = None,
+        domains: Mapping[str, str] | None = None,
+        channel_domains: Mapping[str, str] | None = None,
     ) -> None:
         """``keep_bytes`` (channel -> n) keeps only the first n bytes of that channel's
         messages: enough for the header when the rest (a depth image) is never used."""
@@ -54,10 +57,10 @@ class Collector:
         self.stats: dict[str, ChannelStats] = {ch: ChannelStats() for ch in self.capacities}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._bus = Bus(url, source="dashboard", recv_buf_size=recv_buf_size)
-        for ch, cap in self.capacities.items():
-            # LCM's queue for this subscription is bounded by the same capacity.
-            self._bus.subscribe_raw(re.escape(ch), self._on_message, lcm_queue=cap)
+        self._bus = Bus(url, source="dashboard", recv_buf_size=recv_buf_size, domains=domains,
+                        channel_domains=channel_domains)
+        for ch in self.capacities:
+            self._bus.subscribe_raw(ch, self._on_message)
 
     def _on_message(self, channel: str, data: bytes) -> None:
         """LCM callback: file the bytes, evicting (and counting) the oldest when full."""
