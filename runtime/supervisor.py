@@ -1,14 +1,21 @@
 """The supervisor behind ``cassie launch``: starts a profile's processes and keeps them alive.
 
-* Start in dependency order; a process is ready when its first message appears on its ready
-  channel (by default its first LCM output) within its timeout.
+* Start in dependency order; a process is ready when its first TIMING message arrives (every
+  loop sends one right after its setup, then about ten a second) within its timeout. The
+  supervisor listens to nothing else of the stack: TIMING (and its orders) ride the network
+  domain at ~10 Hz per loop, so watching the stack costs no control loop its deadline.
 * Each child runs in its own process group (and dies with the supervisor through
   ``PR_SET_PDEATHSIG``); one log file per process.
 * A child that exits is restarted per its policy with exponential backoff; more than
   ``max_restarts`` within ``window_s`` puts it in ``crash_loop`` (given up, failed).
 * SIGINT/SIGTERM (or ``--duration``) shuts down in reverse order, escalating
   SIGINT -> SIGTERM -> SIGKILL on each process group, so no orphan is left behind.
-* Status: a live table on the terminal, and the full state on LCM at 1 Hz, procman-style.
+* Status: a live table on the terminal, and the full state on LCM at 1 Hz, procman-style:
+  per process its state, CPU (psutil, over one-second windows), memory, loop rate, deadline
+  misses, scheduling and the node's own status line (the controller's mode, the robot's
+  distance walked); a ``--duration`` run fails when a required process failed or reported a
+  fault (a controller in safe mode, a robot that fell).
+* ``--log``: one ``lcm-logger`` per LCM domain, merged into ``LOG_DIR/lcm.log`` at the end.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ import subprocess
 import sys
 import time
 from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -30,6 +38,8 @@ from lcmtypes import loop_timing_t, process_status_t, supervisor_orders_t, super
 from runtime.bus import Bus
 from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
+from runtime.node import HEALTH_FAULT
+from runtime.scheduling import describe
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 FAILED_STATES = ("failed", "crash_loop")
@@ -63,15 +73,20 @@ class Child:
     log_file: IO[bytes] | None = None
     ps: psutil.Process | None = None
     cpu_percent: float = 0.0
+    cpu_s: float = 0.0
     rss_mb: float = 0.0
     loop_rate_hz: float = 0.0
     deadline_misses: int = 0
-    last_msg_ns: int = 0
+    last_msg_ns: int = 0  # its newest TIMING message (its heartbeat)
+    status: str = ""  # its node's status line, from TIMING
+    health: int = 0
+    fault: str = ""  # the first fault it reported (kept: a fall is not undone)
     affinity: str = "not requested"
     priority: str = "not requested"
     detail: str = ""
     ever_failed: bool = False
     command: list[str] | None = None  # a helper program instead of `cassie run NAME`
+    heartbeat: bool = True  # sends TIMING (a Node); else ready once alive for a moment
 
     @property
     def pid(self) -> int:
@@ -106,18 +121,16 @@ class Supervisor:
         self.grace = shutdown_grace_s
         self.order = check_depends(profile)
         self.children = {name: Child(profile.processes[name]) for name in self.order}
+        self.bus = Bus.for_profile(profile, source="supervisor", recv_buf_size=1 << 20)
+        self.log_parts: list[Path] = []
         if log_lcm:
-            self._add_helper(
-                "lcm_logger",
-                [
-                    _lcm_logger(),
-                    "--quiet",
-                    "--force",
-                    f"--lcm-url={profile.lcm_url}",
-                    str(self.log_dir / "lcm.log"),
-                ],
-                first=True,
-            )
+            # one lcm-logger per LCM domain (a host's bus or the network), merged at the end
+            for i, url in enumerate(self.bus.urls()):
+                part = self.log_dir / (f"lcm.{i}.part.log")
+                self.log_parts.append(part)
+                self._add_helper(f"lcm_logger{'' if i == 0 else i}",
+                                 [_lcm_logger(), "--quiet", "--force", f"--lcm-url={url}",
+                                  str(part)], first=True, nice=10)
         if dashboard:
             # Started before the stack so it sees everything; it records headless into the log
             # folder, and also opens a viewer where there is a display. It renices itself.
@@ -130,28 +143,26 @@ class Supervisor:
         self.t0 = time.monotonic()
         self._stop_requested = False
         self._status_seq = 0
-        self.bus = Bus(profile.lcm_url, source="supervisor", recv_buf_size=8 << 20)
-        self._channel_owner: dict[str, str] = {}
-        for name, child in self.children.items():
-            ch = child.proc.ready_channel
-            if ch is not None and not ch.is_udp:
-                self._channel_owner[ch.name] = name
-                self.bus.subscribe_raw(_regex(ch.name), self._on_output)
-        self.bus.subscribe_raw(_regex(profile.timing_channel), self._on_timing)
-        self.bus.subscribe_raw(_regex(profile.orders_channel), self._on_order)
+        self._me = psutil.Process()
+        self._me.cpu_percent(None)
+        self.cpu_percent = 0.0
+        self._last_sample = 0.0
+        self.bus.subscribe_raw(profile.timing_channel, self._on_timing)
+        self.bus.subscribe_raw(profile.orders_channel, self._on_order)
 
-    def _add_helper(self, name: str, command: list[str], first: bool = False) -> None:
-        """A supporting program (logger, dashboard): supervised, never required, no readiness."""
+    def _add_helper(self, name: str, command: list[str], first: bool = False,
+                    nice: int | None = None) -> None:
+        """A supporting program (logger, dashboard): supervised, never required, no heartbeat."""
         proc = ProcessConfig(
             name=name,
             host="laptop",
             module="",
             source_file=self.profile.path,
             required=False,
-            ready_channel=None,
+            nice=nice,
             restart=RestartPolicy(policy="on-failure", max_restarts=3),
         )
-        child = Child(proc, command=command)
+        child = Child(proc, command=command, heartbeat=False)
         if first:
             self.children = {name: child, **self.children}
             self.order.insert(0, name)
@@ -160,20 +171,23 @@ class Supervisor:
             self.order.append(name)
 
     # -- bus callbacks -------------------------------------------------------------------------
-    def _on_output(self, channel: str, _data: bytes) -> None:
-        child = self.children.get(self._channel_owner.get(channel, ""))
-        if child is not None:
-            child.last_msg_ns = time.monotonic_ns()
-
     def _on_timing(self, _channel: str, data: bytes) -> None:
         try:
             msg = loop_timing_t.decode(data)
         except Exception:
             return
         child = self.children.get(msg.process)
-        if child is not None:
+        if child is None or child.popen is None or msg.header.source != child.proc.name:
+            return
+        child.last_msg_ns = time.monotonic_ns()
+        if msg.ticks or msg.window_s > 0.5:  # not the set-up heartbeat's empty window
             child.loop_rate_hz = msg.rate_hz
-            child.deadline_misses = msg.deadline_misses_total
+        child.deadline_misses = msg.deadline_misses_total
+        child.status = msg.status
+        child.health = msg.health
+        if msg.health == HEALTH_FAULT and not child.fault:
+            child.fault = msg.status
+            self.out.write(f"{child.proc.name} reports a fault: {msg.status}\n")
 
     def _on_order(self, _channel: str, data: bytes) -> None:
         try:
@@ -188,9 +202,12 @@ class Supervisor:
             if msg.order == "stop":
                 self._stop_child(child)
                 child.state = "stopped"
+            elif msg.order == "start" and child.alive():
+                child.detail = "start ordered while running: ignored (order restart instead)"
             elif msg.order in ("start", "restart"):
-                if msg.order == "restart":
+                if msg.order == "restart" and child.popen is not None:
                     self._stop_child(child)
+                    child.restarts += 1
                 child.restart_times.clear()
                 self._start_child(child)
 
@@ -237,29 +254,19 @@ class Supervisor:
         child.started_at = time.monotonic()
         child.ready_at = 0.0
         child.last_msg_ns = 0
+        child.status = ""
+        child.health = 0
         child.detail = ""
         try:
             child.ps = psutil.Process(child.popen.pid)
             child.ps.cpu_percent(None)
         except psutil.Error:
             child.ps = None
-        self._apply_scheduling(child)
-
-    def _apply_scheduling(self, child: Child) -> None:
-        """CPU affinity and nice value, best-effort; the status says whether each took."""
-        pid = child.pid
-        if child.proc.cpu_affinity:
-            try:
-                os.sched_setaffinity(pid, child.proc.cpu_affinity)
-                child.affinity = f"applied {list(child.proc.cpu_affinity)}"
-            except OSError as exc:
-                child.affinity = f"failed: {exc.strerror}"
-        if child.proc.nice is not None:
-            try:
-                os.setpriority(os.PRIO_PROCESS, pid, child.proc.nice)
-                child.priority = f"applied nice {child.proc.nice}"
-            except OSError as exc:
-                child.priority = f"failed: {exc.strerror}"
+        if child.command is not None and child.proc.nice is not None:
+            try:  # a helper program; `cassie run` children apply their own (runtime.scheduling)
+                os.setpriority(os.PRIO_PROCESS, child.pid, child.proc.nice)
+            except OSError:
+                pass
 
     def _signal_group(self, child: Child, sig: int) -> None:
         if child.popen is None:
@@ -306,10 +313,11 @@ class Supervisor:
             last_status = 0.0
             last_table = 0.0
             while ok and not self._stop_requested:
-                self.bus.drain(0.05)
+                self.bus.drain(0.1)
                 now = time.monotonic()
                 self._supervise(now)
                 if now - last_status >= 1.0:
+                    self._sample_resources(now)
                     self.publish_status()
                     last_status = now
                 if now - last_table >= (0.5 if self.live_table else 5.0):
@@ -327,14 +335,19 @@ class Supervisor:
             self.publish_status()
             for s, h in old.items():
                 signal.signal(s, h)
+        self._merge_logs()
         self._print_summary()
-        return 1 if self._required_failed() else 0
+        return 1 if self._required_failed() or self._faults() else 0
 
     def _required_failed(self) -> bool:
         return any(
             c.proc.required and (c.state in FAILED_STATES or c.ever_failed)
             for c in self.children.values()
         )
+
+    def _faults(self) -> list[str]:
+        """Required processes that reported a fault (safe mode, a fall) at any time."""
+        return [c.proc.name for c in self.children.values() if c.proc.required and c.fault]
 
     def _start_all(self) -> bool:
         for name in self.order:
@@ -346,24 +359,29 @@ class Supervisor:
 
     def _wait_ready(self, child: Child) -> bool:
         deadline = time.monotonic() + child.proc.ready_timeout_s
+        last_status = 0.0
         while time.monotonic() < deadline and not self._stop_requested:
-            self.bus.drain(0.02)
+            self.bus.drain(0.05)
+            now = time.monotonic()
+            if now - last_status >= 1.0:  # the status goes on while processes start
+                self._sample_resources(now)
+                self.publish_status()
+                last_status = now
             if child.popen is not None and child.popen.poll() is not None:
                 child.detail = f"exited with {child.popen.returncode} before it was ready"
                 child.exit_code = child.popen.returncode
                 child.state = "failed"
                 child.ever_failed = True
                 return not child.proc.required
-            no_channel = child.proc.ready_channel is None or child.proc.ready_channel.is_udp
-            if child.last_msg_ns or (no_channel and time.monotonic() - child.started_at > 0.5):
+            if child.last_msg_ns or (not child.heartbeat and now - child.started_at > 0.5):
                 child.state = "ready"
-                child.ready_at = time.monotonic()
+                child.ready_at = now
                 return True
         if self._stop_requested:
             return False
-        ch = child.proc.ready_channel
         child.detail = (
-            f"no message on {ch.name if ch else '?'} within {child.proc.ready_timeout_s:.1f} s"
+            f"no TIMING heartbeat within {child.proc.ready_timeout_s:.1f} s (see its log "
+            f"{child.log_path})"
         )
         child.state = "failed"
         child.ever_failed = True
@@ -379,7 +397,9 @@ class Supervisor:
                     self._on_exit(child, code, now)
             elif child.state == "backoff" and now >= child.next_start_at:
                 self._start_child(child)
-            self._sample_resources(child)
+            if (child.state == "starting" and not child.heartbeat
+                    and now - child.started_at > 0.5):
+                child.state, child.ready_at = "ready", now
 
     def _on_exit(self, child: Child, code: int, now: float) -> None:
         # The leader is gone; whatever it left in its process group goes with it.
@@ -412,16 +432,27 @@ class Supervisor:
         child.state = "backoff"
         child.detail = f"{how}; restart in {child.backoff_s:.1f} s"
 
-    def _sample_resources(self, child: Child) -> None:
-        if child.ps is None:
-            child.cpu_percent = child.rss_mb = 0.0
-            return
-        try:
-            with child.ps.oneshot():
-                child.cpu_percent = child.ps.cpu_percent(None)
-                child.rss_mb = child.ps.memory_info().rss / 2**20
-        except psutil.Error:
-            child.cpu_percent = child.rss_mb = 0.0
+    def _sample_resources(self, now: float) -> None:
+        """CPU share (psutil, over the time since the previous sample: about a second, so the
+        figure is a real average, not a 1 ms glimpse), CPU seconds, memory, scheduling."""
+        self._last_sample = now
+        self.cpu_percent = self._me.cpu_percent(None)
+        for child in self.children.values():
+            if child.ps is None:
+                child.cpu_percent = child.rss_mb = 0.0
+                continue
+            try:
+                with child.ps.oneshot():
+                    child.cpu_percent = child.ps.cpu_percent(None)
+                    t = child.ps.cpu_times()
+                    child.cpu_s = t.user + t.system
+                    child.rss_mb = child.ps.memory_info().rss / 2**20
+                child.priority = describe(child.pid)
+                aff = child.ps.cpu_affinity()
+                child.affinity = ("all" if len(aff) == (os.cpu_count() or len(aff))
+                                  else ",".join(map(str, aff)))
+            except psutil.Error:
+                child.cpu_percent = child.rss_mb = 0.0
 
     def _shutdown(self) -> None:
         for name in reversed(self.order):
@@ -453,14 +484,26 @@ class Supervisor:
             p.restarts = child.restarts
             p.exit_code = child.exit_code
             p.cpu_percent = child.cpu_percent
+            p.cpu_s = child.cpu_s
             p.rss_mb = child.rss_mb
             p.loop_rate_hz = child.loop_rate_hz
             p.deadline_misses = child.deadline_misses
             p.last_message_age_s = (now_ns - child.last_msg_ns) / 1e9 if child.last_msg_ns else -1.0
+            p.health = child.health
+            p.status = child.status
             p.affinity = child.affinity
             p.priority = child.priority
             p.detail = child.detail
             msg.processes.append(p)
+        me = process_status_t()  # the supervisor itself, so its cost is on record too
+        me.name, me.host, me.state, me.pid = "supervisor", "laptop", self.state, os.getpid()
+        me.cpu_percent = self.cpu_percent
+        t = self._me.cpu_times()
+        me.cpu_s = t.user + t.system
+        me.rss_mb = self._me.memory_info().rss / 2**20
+        me.last_message_age_s = -1.0
+        me.priority = describe(os.getpid())
+        msg.processes.append(me)
         msg.num_processes = len(msg.processes)
         return msg
 
@@ -473,16 +516,25 @@ class Supervisor:
     def table(self) -> str:
         rows = [
             f"{'process':<16}{'state':<11}{'pid':>7}{'rst':>4}{'cpu%':>7}{'MB':>7}"
-            f"{'Hz':>9}{'miss':>7}{'age s':>8}  detail"
+            f"{'Hz':>9}{'miss':>7}{'age s':>7}  {'sched':<8} status"
         ]
         now_ns = time.monotonic_ns()
+        total = self.cpu_percent
         for c in self.children.values():
-            age = f"{(now_ns - c.last_msg_ns) / 1e9:.2f}" if c.last_msg_ns else "-"
+            age = f"{(now_ns - c.last_msg_ns) / 1e9:.1f}" if c.last_msg_ns else "-"
+            text = c.detail or c.status
+            if c.fault and c.fault != text:
+                text = f"{text} (fault: {c.fault})"
             rows.append(
                 f"{c.proc.name:<16}{c.state:<11}{c.pid or '-':>7}{c.restarts:>4}"
                 f"{c.cpu_percent:>7.1f}{c.rss_mb:>7.0f}{c.loop_rate_hz:>9.1f}"
-                f"{c.deadline_misses:>7}{age:>8}  {c.detail}"
+                f"{c.deadline_misses:>7}{age:>7}  {c.priority:<8} {text}"
             )
+            total += c.cpu_percent
+        rows.append(f"{'supervisor':<16}{self.state:<11}{os.getpid():>7}{'':>4}"
+                    f"{self.cpu_percent:>7.1f}")
+        rows.append(f"{'total':<16}{'':<11}{'':>7}{'':>4}{total:>7.1f}  "
+                    f"(% of one core; this machine has {os.cpu_count()} cores)")
         return "\n".join(rows)
 
     def _print_table(self, live: bool) -> None:
@@ -493,6 +545,20 @@ class Supervisor:
         else:
             self.out.write(text)
         self.out.flush()
+
+    def _merge_logs(self) -> None:
+        if not self.log_parts:
+            return
+        out = self.log_dir / "lcm.log"
+        try:
+            n = merge_logs(self.log_parts, out)
+        except Exception as exc:  # keep the parts: nothing recorded is lost
+            self.out.write(f"could not merge the LCM logs into {out} ({exc}); the parts are "
+                           f"{', '.join(map(str, self.log_parts))}\n")
+            return
+        for part in self.log_parts:
+            part.unlink(missing_ok=True)
+        self.out.write(f"LCM log: {out} ({n} messages from {len(self.log_parts)} domains)\n")
 
     def _print_summary(self) -> None:
         self.out.write(
@@ -505,8 +571,39 @@ class Supervisor:
             for c in self.children.values()
             if c.proc.required and (c.state in FAILED_STATES or c.ever_failed)
         ]
+        for name in self._faults():
+            self.out.write(f"fault: {name}: {self.children[name].fault}\n")
+            if name not in bad:
+                bad.append(name)
         self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")
         self.out.flush()
+
+
+def merge_logs(parts: list[Path], out: Path) -> int:
+    """Merge LCM logs into one, in receive-time order (one lcm-logger ran per domain); returns
+    the number of events. Stock tools (lcm-logplayer, lcm-spy) then see the whole stack."""
+    import heapq
+
+    import lcm
+
+    logs = [lcm.EventLog(str(p), "r") for p in parts if p.exists() and p.stat().st_size]
+
+    def events(log: lcm.EventLog) -> Iterator[lcm.Event]:
+        # read_next_event, not iter(): EventLog's iterator rewinds, which heapq.merge trips on
+        while (ev := log.read_next_event()) is not None:
+            yield ev
+
+    merged = lcm.EventLog(str(out), "w", overwrite=True)
+    n = 0
+    for ev in heapq.merge(*map(events, logs), key=lambda e: e.timestamp):
+        if ev.channel == "LCM_SELF_TEST":
+            continue
+        merged.write_event(ev.timestamp, ev.channel, ev.data)
+        n += 1
+    merged.close()
+    for log in logs:
+        log.close()
+    return n
 
 
 def _lcm_logger() -> str:
@@ -515,9 +612,3 @@ def _lcm_logger() -> str:
 
     here = Path(sys.executable).parent / "lcm-logger"
     return str(here) if here.exists() else (shutil.which("lcm-logger") or "lcm-logger")
-
-
-def _regex(channel: str) -> str:
-    import re
-
-    return re.escape(channel)

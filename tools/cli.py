@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
-import os
 import sys
 from pathlib import Path
 
@@ -30,29 +29,10 @@ def _cmd_launch(args: argparse.Namespace) -> int:
     return sup.run()
 
 
-def apply_scheduling(proc: object) -> list[str]:
-    """CPU affinity and nice for this process, best-effort; returns what happened, per item."""
-    notes = []
-    aff = getattr(proc, "cpu_affinity", None)
-    if aff:
-        try:
-            os.sched_setaffinity(0, aff)
-            notes.append(f"cpu affinity {list(aff)}: applied")
-        except OSError as exc:
-            notes.append(f"cpu affinity {list(aff)}: failed ({exc.strerror})")
-    nice = getattr(proc, "nice", None)
-    if nice is not None:
-        try:
-            os.setpriority(os.PRIO_PROCESS, 0, nice)
-            notes.append(f"nice {nice}: applied")
-        except OSError as exc:
-            notes.append(f"nice {nice}: failed ({exc.strerror})")
-    return notes
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
     from runtime.config import load_profile
     from runtime.loops import LiveRunner
+    from runtime.scheduling import apply_scheduling
 
     profile = load_profile(args.profile)
     if args.process not in profile.processes:
@@ -64,27 +44,46 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
     proc = profile.processes[args.process]
     log = logging.getLogger(proc.name)
-    if not os.environ.get("CASSIE_SUPERVISED"):  # under the supervisor, it applies them
-        for note in apply_scheduling(proc):
-            log.info(note)
+    # before any thread exists (LCM's receive thread, a camera thread), so they inherit it
+    for note in apply_scheduling(proc):
+        (log.warning if "failed" in note else log.info)(note)
     module = importlib.import_module(proc.module)
     if hasattr(module, "make_node"):
         node = module.make_node(proc, profile)
+        domains = sorted({profile.channel_domains.get(c.name, "network")
+                          for c in (*proc.inputs.values(), *proc.outputs.values()) if not c.is_udp})
         log.info(
-            "%s: running %s (%s) on %s",
+            "%s: running %s (%s) on host %s; LCM domains %s",
             proc.name,
             type(node).__name__,
             proc.module,
-            profile.lcm_url,
+            proc.host,
+            ", ".join(f"{d} ({profile.domains.get(d, profile.lcm_url)})" for d in domains),
         )
         return LiveRunner(node, proc, profile).run(duration_s=args.duration)
     if hasattr(module, "main"):
+        _started(proc, profile)
         return int(module.main(proc, profile) or 0)
     raise ConfigError(
         str(proc.source_file),
         proc.key("module"),
         f"module {proc.module} defines neither make_node(proc, profile) nor main(proc, profile)",
     )
+
+
+def _started(proc: object, profile: object) -> None:
+    """One TIMING message for a process that is not a Node (``main(proc, profile)``): the
+    supervisor's sign that it started, as a node's runner sends after its setup."""
+    from lcmtypes import loop_timing_t
+    from runtime.bus import Bus
+
+    msg = loop_timing_t()
+    msg.process = msg.loop = msg.header.source = proc.name  # type: ignore[attr-defined]
+    msg.kind = "main"
+    msg.status = "started"
+    bus = Bus.for_profile(profile, source=proc.name)  # type: ignore[arg-type]
+    bus.publish(profile.timing_channel, msg)  # type: ignore[attr-defined]
+    bus.close()
 
 
 def _cmd_bench(args: argparse.Namespace, rest: list[str]) -> int:

@@ -1,0 +1,62 @@
+"""A process's own CPU scheduling: real-time priority, nice value, CPU affinity.
+
+A process applies these to itself when it starts (``cassie run``), before it creates any
+thread, so LCM's receive thread and a camera thread inherit them. A real-time priority is
+asked for with ``SCHED_RESET_ON_FORK``: a child it spawns (the depth renderer) runs at normal
+priority and can never hold up the loop that spawned it. Each setting is best-effort: one that
+cannot be applied (no permission) is reported, and the process runs on without it.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+
+def apply_scheduling(proc: Any) -> list[str]:
+    """Apply ``proc``'s ``rt_priority``, ``nice`` and ``cpu_affinity`` (a ``ProcessConfig``) to
+    this process; returns one line per setting saying what happened."""
+    notes = []
+    aff = getattr(proc, "cpu_affinity", None)
+    if aff:
+        try:
+            os.sched_setaffinity(0, aff)
+            notes.append(f"cpu affinity {list(aff)}: applied")
+        except OSError as exc:
+            notes.append(f"cpu affinity {list(aff)}: failed ({exc.strerror})")
+    nice = getattr(proc, "nice", None)
+    if nice is not None:
+        try:
+            os.setpriority(os.PRIO_PROCESS, 0, nice)
+            notes.append(f"nice {nice}: applied")
+        except OSError as exc:
+            notes.append(f"nice {nice}: failed ({exc.strerror})")
+    prio = getattr(proc, "rt_priority", None)
+    if prio is not None:
+        try:
+            os.sched_setscheduler(
+                0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(int(prio))
+            )
+            notes.append(f"SCHED_FIFO priority {prio}: applied")
+        except (OSError, AttributeError) as exc:
+            why = getattr(exc, "strerror", None) or str(exc)
+            notes.append(
+                f"SCHED_FIFO priority {prio}: failed ({why}); running at normal priority "
+                "(real-time priority needs root or CAP_SYS_NICE, or an rtprio limit: "
+                "`ulimit -r`)"
+            )
+    return notes
+
+
+def describe(pid: int) -> str:
+    """What scheduling ``pid`` runs with, e.g. ``fifo 80`` or ``nice 5`` (for status tables)."""
+    try:
+        policy = os.sched_getscheduler(pid) & ~getattr(os, "SCHED_RESET_ON_FORK", 0)
+        if policy == os.SCHED_FIFO:
+            return f"fifo {os.sched_getparam(pid).sched_priority}"
+        if policy == getattr(os, "SCHED_RR", -1):
+            return f"rr {os.sched_getparam(pid).sched_priority}"
+        nice = os.getpriority(os.PRIO_PROCESS, pid)
+        return f"nice {nice}" if nice else "normal"
+    except OSError:
+        return "?"
