@@ -35,7 +35,7 @@ import yaml
 from lcmtypes import depth_frame_t, foothold_set_t, ground_truth_t
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
-from runtime.node import Context, Inbox, Node
+from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
 from sim import terrain as terrain_mod
 from sim.camera import (
     AsyncDepthRenderer,
@@ -44,7 +44,7 @@ from sim.camera import (
     DepthFrame,
     ProcessDepthRenderer,
 )
-from sim.target_pc import HolderConfig, Mode, SimConfig, TargetPC, make_core
+from sim.target_pc import HolderConfig, Mode, PushConfig, SimConfig, TargetPC, make_core
 from sim.terrain import Terrain
 
 log = logging.getLogger(__name__)
@@ -65,8 +65,11 @@ class SimSettings:
     camera: CameraConfig = field(default_factory=CameraConfig)
     camera_enabled: bool = True
     camera_render: CameraRender = "auto"  # auto: a child process in real time, inline in lockstep
-    ground_truth_rate_hz: float = 500.0
     lockstep_timeout_s: float = 1.0
+    #: real time: after a stall (this VM's, or a busy core) step the physics through up to this
+    #: much missed sim time in one tick, so sim time keeps up with the wall clock as a real
+    #: robot's would; a longer stall is lost (counted) and the real-time factor shows it
+    catch_up_s: float = 0.002
     steps_per_command: int = 1
     gil_switch_interval_s: float | None = 2e-4  # shorter GIL hand-offs (thread renderer only)
 
@@ -157,8 +160,8 @@ def load_gains(path: str | Path | None) -> SimSettings:
     except yaml.YAMLError as exc:
         raise ConfigError(file, "gains_file", f"not valid YAML: {exc}") from exc
     doc = _mapping(file, "(top level)", doc)
-    _check_keys(file, "", doc, {"physics", "watchdog_ms", "holder", "camera",
-                                "ground_truth_rate_hz", "lockstep", "gil_switch_interval_s"})
+    _check_keys(file, "", doc, {"physics", "watchdog_ms", "holder", "camera", "realtime",
+                                "lockstep", "gil_switch_interval_s", "push"})
     phys = _mapping(file, "physics", doc.get("physics"))
     _check_keys(file, "physics.", phys, {"impratio", "pelvis_height_m", "foot_y_m"})
     hold = _mapping(file, "holder", doc.get("holder"))
@@ -178,6 +181,7 @@ def load_gains(path: str | Path | None) -> SimSettings:
                               ", ".join(choices))
         hkw["release_on"] = hold["release_on"]
     sim = SimConfig(
+        push=_push(file, doc.get("push")),
         watchdog_s=_num(file, "watchdog_ms", doc.get("watchdog_ms", 10.0), lo=0.5, hi=1000.0)
         / 1000.0,
         impratio=_num(file, "physics.impratio", phys.get("impratio", 10.0), lo=1.0, hi=1000.0),
@@ -189,18 +193,40 @@ def load_gains(path: str | Path | None) -> SimSettings:
     cam, cam_on, render = _camera(file, _mapping(file, "camera", doc.get("camera")))
     lock = _mapping(file, "lockstep", doc.get("lockstep"))
     _check_keys(file, "lockstep.", lock, {"timeout_s", "steps_per_command"})
+    rt = _mapping(file, "realtime", doc.get("realtime"))
+    _check_keys(file, "realtime.", rt, {"catch_up_ms"})
     gil = doc.get("gil_switch_interval_s", 2e-4)
     if gil is not None:
         gil = _num(file, "gil_switch_interval_s", gil, lo=1e-6, hi=0.1)
     return SimSettings(
         sim=sim, camera=cam, camera_enabled=cam_on, camera_render=render,
-        ground_truth_rate_hz=_num(file, "ground_truth_rate_hz",
-                                  doc.get("ground_truth_rate_hz", 500.0), lo=0.0, hi=2000.0),
+        catch_up_s=_num(file, "realtime.catch_up_ms", rt.get("catch_up_ms", 2.0), lo=0.0,
+                        hi=100.0) / 1000.0,
         lockstep_timeout_s=_num(file, "lockstep.timeout_s", lock.get("timeout_s", 1.0),
                                 lo=1e-3, hi=3600.0),
         steps_per_command=int(_num(file, "lockstep.steps_per_command",
                                    lock.get("steps_per_command", 1), lo=1, hi=100, integer=True)),
         gil_switch_interval_s=gil,
+    )
+
+
+def _push(file: str, v: Any) -> PushConfig | None:
+    """``push: {after_release_s, force_n: [x, y, z], duration_s}`` (or null: none)."""
+    if v is None:
+        return None
+    doc = _mapping(file, "push", v)
+    _check_keys(file, "push.", doc, {"after_release_s", "force_n", "duration_s"})
+    f = doc.get("force_n")
+    if not isinstance(f, list) or len(f) != 3:
+        raise ConfigError(file, "push.force_n", f"must be [x, y, z] in newtons, got {f!r}")
+    if "after_release_s" not in doc:
+        raise ConfigError(file, "push.after_release_s", "is required (sim seconds after the "
+                          "holder lets go)")
+    return PushConfig(
+        after_release_s=_num(file, "push.after_release_s", doc["after_release_s"], lo=0.0),
+        force_n=tuple(_num(file, f"push.force_n[{i}]", x, lo=-1e4, hi=1e4)  # type: ignore[misc]
+                      for i, x in enumerate(f)),
+        duration_s=_num(file, "push.duration_s", doc.get("duration_s", 0.1), lo=5e-4, hi=10.0),
     )
 
 
@@ -213,6 +239,8 @@ PARAMS = {
                      "depth camera: nothing renders or publishes DEPTH)",
     "publish_footholds": "also publish the terrain's ground-truth footholds (output role "
                          "'footholds', foothold_set_t) at 30 Hz of sim time",
+    "push": "an external force on the pelvis: {after_release_s, force_n: [x, y, z], "
+            "duration_s} (overrides the gains file's push)",
 }
 
 
@@ -250,6 +278,8 @@ def resolve_terrain(proc: ProcessConfig, profile: Profile | None) -> Terrain:
 
 
 RENDER_STARTUP_S = 30.0  # how long setup waits for the depth render process to boot
+FALL_HEIGHT_M = 0.6  # a fall: the pelvis less than this over the ground under it
+JUDGE_PERIOD_US = 20_000  # the robot's truth (fall, distance) checked at 50 Hz of sim time
 FOOTHOLD_PERIOD_US = 33_333  # ground-truth footholds at the rate S3 would publish them
 
 # -- the node ----------------------------------------------------------------------------------
@@ -308,9 +338,14 @@ class SimNode(Node):
                 log.warning("sim period %.6f s is not a multiple of the physics step %.6f s: "
                             "sim time runs at %.3fx the tick clock", self.period_s,
                             self.core.dt, self.steps_per_tick / ratio)
-        gt_hz = settings.ground_truth_rate_hz
-        self._gt_every_us = round(1e6 / gt_hz) if gt_hz > 0 else 0
-        self._next_gt_us = 0
+        self._max_catch_up = round(settings.catch_up_s / self.core.dt)
+        self.catch_up_steps = 0  # physics steps taken to make up for missed slots
+        self.lost_slots = 0  # missed slots beyond catch_up_ms: sim time lost to the wall clock
+        self._next_judge_us = 0
+        self.fell_at: float | None = None
+        self._x_release: float | None = None
+        self._walked_m = 0.0
+        self._pelvis_z = 0.0
         self._gt = ground_truth_t()
         self._gt.num_positions = self.core.m.nq
         self._gt.num_velocities = self.core.m.nv
@@ -353,19 +388,50 @@ class SimNode(Node):
         skipped = 0
         if self.trigger_role is None:
             data = inbox.latest("command") if inbox.is_fresh("command") else None
-            out = tpc.realtime_cycle(data, self.steps_per_tick)
             now = ctx.now_utime  # the scheduled time: a jump of several periods = skipped slots
             if self._prev_utime is not None and self._period_us > 0:
                 skipped = max(0, (now - self._prev_utime) // self._period_us - 1)
             self._prev_utime = now
+            steps = self.steps_per_tick
+            if skipped and self.wall_clock:
+                # the loop missed slots (a stall): step through them with the same torque, as
+                # the real robot's physics would have gone on; beyond the cap they are lost
+                extra = min(skipped, self._max_catch_up)
+                self.catch_up_steps += extra * steps
+                self.lost_slots += skipped - extra
+                steps += extra * steps
+            out = tpc.realtime_cycle(data, steps)
         else:
             out = tpc.lockstep_cycle(inbox.trigger())
+        if self.trigger_role is not None:
+            # driven by raw command bytes, which carry no sim time: the sim is the clock, so
+            # its outputs (and their decimation) run on physics time
+            ctx.now_utime = self.core.utime
         if out is not None:
             ctx.publish("robot_output", bytes(out))
         self._publish_extras(ctx)
+        if self.core.utime >= self._next_judge_us:
+            self._next_judge_us = self.core.utime + JUDGE_PERIOD_US
+            self._judge()
         task = time.perf_counter() - t0
         if self.wall_clock:
             tpc.stats.record(task, self.core.time, skipped)
+
+    def _judge(self) -> None:
+        """The truth about the robot, for status and health: distance walked since the holder
+        let go, and whether it fell (pelvis less than FALL_HEIGHT_M over the ground under it,
+        the rule ``cassie experiment`` judges by)."""
+        q = self.core.d.qpos
+        x, y, z = float(q[0]), float(q[1]), float(q[2])
+        self._pelvis_z = z - self.settings.terrain.height_at(x, y)
+        if self.core.release_time is not None:
+            if self._x_release is None:
+                self._x_release = x
+            self._walked_m = x - self._x_release
+            if self.fell_at is None and self._pelvis_z < FALL_HEIGHT_M:
+                self.fell_at = self.core.time
+                log.warning("the robot fell at t=%.3f s: pelvis %.2f m over the ground",
+                            self.core.time, self._pelvis_z)
 
     def _publish_extras(self, ctx: Context) -> None:
         core = self.core
@@ -374,8 +440,7 @@ class SimNode(Node):
             self._next_fh_us = now + FOOTHOLD_PERIOD_US
             self._footholds.header.utime = now
             ctx.publish("footholds", self._footholds)
-        if self._gt_every_us and now >= self._next_gt_us:
-            self._next_gt_us = now + self._gt_every_us
+        if ctx.due("ground_truth"):  # decimated by processes.sim.output_rate_hz
             ctx.publish("ground_truth", self._ground_truth())
         if self._camera is None:
             return
@@ -436,10 +501,49 @@ class SimNode(Node):
             sys.setswitchinterval(self._old_switch)
             self._old_switch = None
 
+    def health(self) -> int:
+        """A fault once the robot has fell: the launch that ran it did not succeed."""
+        return HEALTH_FAULT if self.fell_at is not None else HEALTH_OK
+
+    def counters(self) -> dict[str, float]:
+        """Steps, packets and the robot's truth, for reports (e.g. a torque per step)."""
+        tpc, c = self.tpc, self.core
+        return {
+            "sim_time_s": c.time,
+            "steps": c.steps,
+            "packets_sent": tpc.link.sent,
+            "commands_received": tpc.link.received,
+            "commands_lost": tpc.link.lost,
+            "commands_malformed": tpc.link.malformed,
+            "zero_torque_steps": c.zero_torque_steps,
+            "rtf": tpc.stats.rtf if self.wall_clock else 0.0,
+            "overruns": tpc.stats.overruns,
+            "catch_up_steps": self.catch_up_steps,
+            "lost_slots": self.lost_slots,
+            "holder": float(c.holder_engaged),
+            "walked_m": self._walked_m,
+            "pelvis_height_m": self._pelvis_z,
+            "fell": float(self.fell_at is not None),
+            "depth_frames": self.depth_published,
+        }
+
+    def robot_status(self) -> str:
+        """What the robot does, from the sim's truth: held, walking (distance), or fallen."""
+        c = self.core
+        if self.fell_at is not None:
+            return (f"FELL at t={self.fell_at:.2f} s after {self._walked_m:.2f} m (pelvis "
+                    f"{self._pelvis_z:.2f} m over the ground)")
+        if c.release_time is None:
+            return "held by the start-up holder"
+        t = c.time - c.release_time
+        v = self._walked_m / t if t > 0 else 0.0
+        return (f"walked {self._walked_m:.2f} m in {t:.1f} s ({v:.2f} m/s), pelvis "
+                f"{self._pelvis_z:.2f} m")
+
     def status(self) -> str:
-        """One line: mode, sim time, real-time factor, overruns, link counts, holder,
-        watchdog, lockstep timeouts, depth frames."""
-        s = self.tpc.summary()
+        """One line: the robot's truth, then mode, sim time, real-time factor, overruns, link
+        counts, holder, watchdog, lockstep timeouts, depth frames."""
+        s = self.robot_status() + " | " + self.tpc.summary()
         if self.render_mode != "off":
             dropped = self.renderer.dropped if self.renderer is not None else self._depth_dropped
             s += f" depth={self.depth_published} ({self.render_mode}, dropped {dropped})"

@@ -57,6 +57,17 @@ class HolderConfig:
 
 
 @dataclass(frozen=True)
+class PushConfig:
+    """An external force on the pelvis (world frame, N) for ``duration_s``, ``after_release_s``
+    of sim time after the holder lets go: a shove for push-recovery tests, or one that knocks
+    the robot over to check that a launch reports the fall."""
+
+    after_release_s: float
+    force_n: tuple[float, float, float]
+    duration_s: float = 0.1
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """Physics and start-up settings of the target PC."""
 
@@ -65,6 +76,7 @@ class SimConfig:
     pelvis_height: float = 0.95
     foot_y: float = 0.135
     holder: HolderConfig = field(default_factory=HolderConfig)
+    push: PushConfig | None = None
 
 
 class SimCore:
@@ -100,9 +112,13 @@ class SimCore:
         self.torque_cmd[:] = 0.0
         self.last_command_time: float | None = None
         self.holder_engaged = self.cfg.holder.enabled
+        self.release_time: float | None = None if self.holder_engaged else 0.0
+        self._push_window: tuple[float, float] | None = None
+        self.pushing = False
         self.commands = 0
         self.steps = 0
         self.torque_zeroed = True  # the last step applied zeros because of the watchdog
+        self.zero_torque_steps = 0  # steps the watchdog (or no command yet) held at zero
 
     @property
     def time(self) -> float:
@@ -134,6 +150,7 @@ class SimCore:
         """Let go of the pelvis (idempotent)."""
         if self.holder_engaged:
             log.info("pelvis holder released at t=%.4f s", self.d.time)
+            self.release_time = float(self.d.time)
         self.holder_engaged = False
         if self.idx.holder_eq >= 0:
             self.d.eq_active[self.idx.holder_eq] = 0
@@ -142,14 +159,30 @@ class SimCore:
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps with the newest torque (zeros once the watchdog trips)."""
         d = self.d
+        push = self.cfg.push
+        if push is not None and self.release_time is not None:
+            self._apply_push(push)
         for _ in range(n):
             self.torque_zeroed = self.watchdog_tripped
             if self.torque_zeroed:
+                self.zero_torque_steps += 1
                 d.ctrl[:] = 0.0
             else:
                 np.divide(self.torque_cmd, self.idx.gear, out=d.ctrl)  # MuJoCo clamps ctrl
             mujoco.mj_step(self.m, d)
             self.steps += 1
+
+    def _apply_push(self, push: PushConfig) -> None:
+        """The configured shove on the pelvis, inside its window of sim time (per step call:
+        the window is resolved to the 0.5 ms step)."""
+        t = self.d.time - (self.release_time or 0.0)
+        on = push.after_release_s <= t < push.after_release_s + push.duration_s
+        if on != self.pushing:
+            self.d.xfrc_applied[self.idx.pelvis_body, :3] = push.force_n if on else 0.0
+            if on:
+                log.info("pushing the pelvis with %s N for %.3f s at t=%.3f s", push.force_n,
+                         push.duration_s, self.d.time)
+            self.pushing = on
 
     # -- outputs ---------------------------------------------------------------------------
     def fill_output(self, pkt: OutputPacket) -> None:

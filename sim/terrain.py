@@ -101,6 +101,18 @@ class Terrain:
         """The faces (less the margin) a foot centre may land on, for judging a footstep."""
         return self.surfaces or self.footholds
 
+    def height_at(self, x: float, y: float) -> float:
+        """Height of the terrain under (x, y): the highest box top there, else the ground
+        plane (-inf over a pit). For judging falls (pelvis height over the ground under it)."""
+        z = self.ground_z if self.ground_z is not None else -math.inf
+        for b in self.boxes:
+            c, s = math.cos(b.yaw), math.sin(b.yaw)
+            dx, dy = x - b.center[0], y - b.center[1]
+            if (abs(c * dx + s * dy) <= 0.5 * b.size[0] and abs(-s * dx + c * dy) <= 0.5 * b.size[1]
+                    and b.top_z > z):
+                z = b.top_z
+        return z
+
 
 def eroded_foothold(fh: Foothold, half_length: float, half_width: float) -> Foothold | None:
     """``fh`` less the foot: the foot centres for which an axis-aligned (robot facing +x)

@@ -196,24 +196,6 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
     return prof_path, launch
 
 
-def terrain_height(terrain: Any) -> Callable[[float, float], float]:
-    """Height of ``terrain`` (a ``sim.terrain.Terrain``) under (x, y): the highest box top
-    there, else the ground plane (-inf over a pit)."""
-    boxes = [(b.center[0], b.center[1], math.cos(b.yaw), math.sin(b.yaw), 0.5 * b.size[0],
-              0.5 * b.size[1], b.top_z) for b in terrain.boxes]
-    below = terrain.ground_z if terrain.ground_z is not None else -math.inf
-
-    def height(x: float, y: float) -> float:
-        z = below
-        for cx, cy, c, s, hx, hy, top in boxes:
-            dx, dy = x - cx, y - cy
-            if abs(c * dx + s * dy) <= hx and abs(-s * dx + c * dy) <= hy and top > z:
-                z = top
-        return z
-
-    return height
-
-
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
              work: Path, mode: str | None = None, depth: float | None = None
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float]]:
@@ -227,7 +209,7 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
     # the foot that the controller aims within
     ter = terrain_mod.load_terrain(terrain)
     footholds = list(ter.landing_surfaces)
-    return prof_path, load_profile(prof_path), launch, footholds, terrain_height(ter)
+    return prof_path, load_profile(prof_path), launch, footholds, ter.height_at
 
 
 def run_trial(

@@ -15,7 +15,7 @@ import numpy as np
 from lcmtypes import command_t, mpfc_output_t, osc_debug_t, robot_state_t, torque_command_t
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
-from runtime.node import Context, Inbox, Node
+from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
 
 from .controller import SAFE, OscController
 from .model import CassieModel
@@ -78,6 +78,9 @@ class OscNode(Node):
         cmd.mode = dbg.mode
         cmd.status = dbg.status
         ctx.publish("torque", cmd)
+        self._status = dbg.status
+        if not ctx.due("debug"):  # OSC_DEBUG is decimated (processes.osc.output_rate_hz)
+            return
         d = self._debug
         d.header.utime = state.header.utime
         d.tick_ms = dbg.tick_ms
@@ -90,11 +93,19 @@ class OscNode(Node):
         d.task_names = list(dbg.task_names)
         d.task_errors = list(dbg.task_errors)
         ctx.publish("debug", d)
-        self._status = dbg.status
 
     def status(self) -> str:
         """The controller's last status line (mode and, in safe mode, the reason)."""
         return self._status
+
+    def health(self) -> int:
+        """A fault in safe mode: the robot is no longer controlled."""
+        return HEALTH_FAULT if self.in_safe_mode else HEALTH_OK
+
+    def counters(self) -> dict[str, float]:
+        """The controller's mode (0 walking, 1 standing, 2 safe)."""
+        c = self.controller
+        return {"mode": float(c.mode) if c is not None else -1.0}
 
     @property
     def in_safe_mode(self) -> bool:

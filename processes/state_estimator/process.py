@@ -120,6 +120,7 @@ class StateEstimatorNode(Node):
             self._reject(self.last_error if e is None else "estimate became non-finite")
             return
         self._last_ok = True  # pkt.buffer now holds the packet this state was estimated from
+        ctx.now_utime = e.utime  # a raw packet drove this tick: its utime is the sim time
         s = self._state
         s.header.utime = e.utime
         s.q = e.q.tolist()
@@ -139,12 +140,24 @@ class StateEstimatorNode(Node):
         if to_laptop:
             ctx.publish("network_state", s)
         self.published += 1
+        if not ctx.due("contact"):  # decimated (processes.state_estimator.output_rate_hz)
+            return
         c = self._contact
         c.header.utime = e.utime
         c.in_contact = list(e.in_contact)
         c.spring_deflection = e.spring_defl.tolist()
         c.force_estimate = e.force.tolist()
         ctx.publish("contact", c)
+
+    def counters(self) -> dict[str, float]:
+        """Packets in, states out: a report checks a state for every packet of the sim."""
+        return {
+            "packets_received": self.link.received,
+            "packets_lost": self.link.lost,
+            "packets_rejected": self.rejected,
+            "states_published": self.published,
+            "estimator_resets": self.estimator_resets,
+        }
 
     def status(self) -> str:
         s = f"published {self.published} rejected {self.rejected} {self.link.summary()}"

@@ -79,15 +79,6 @@ class TorqueBridgeNode(Node):
 
     def setup(self, ctx: Context) -> None:
         self._dofs = motor_dofs()
-        if self.trigger_role == "torque":
-            # nothing to answer before the controller's first torque: say so (this is also
-            # the supervisor's sign that the bridge is up)
-            m = self._msg
-            m.header.utime = 0
-            m.torque = [0.0] * NUM_MOTORS
-            m.commanded = [0.0] * NUM_MOTORS
-            m.status = "lockstep: waiting for the first torque command"
-            ctx.publish("applied_input", m)
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:
         b = self.bridge
@@ -126,6 +117,8 @@ class TorqueBridgeNode(Node):
         release = self.params.release_holder and b.source == SOURCE_COMMAND
         pkt.flags = FLAG_RELEASE_HOLDER if release else 0
         ctx.publish("robot_input", pkt.to_bytes(self.link.next_seq(), packet_seq_of(state)))
+        if not ctx.due("applied_input"):  # decimated (processes.torque_bridge.output_rate_hz)
+            return
         m = self._msg
         m.header.utime = utime
         m.torque = tau.tolist()
@@ -140,6 +133,17 @@ class TorqueBridgeNode(Node):
 
     def status(self) -> str:
         return self.bridge.status()
+
+    def counters(self) -> dict[str, float]:
+        """Torque packets sent, and why the watchdog or the checks stepped in."""
+        b = self.bridge
+        return {
+            "packets_sent": self.link.sent,
+            "watchdog_trips": b.watchdog_trips,
+            "clamps": b.clamp_count,
+            "nan_rejects": b.nan_rejects,
+            "unmatched": self.unmatched,
+        }
 
 
 def make_node(proc: ProcessConfig, profile: Profile) -> Node:

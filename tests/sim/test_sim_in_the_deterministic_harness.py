@@ -43,7 +43,7 @@ def _run() -> list[Any]:
     h = Harness([
         Binding(sim, inputs={"command": "ROBOT_INPUT"},
                 outputs={"robot_output": "ROBOT_OUTPUT", "ground_truth": "GROUND_TRUTH",
-                         "depth": "DEPTH"}),
+                         "depth": "DEPTH"}, output_rate_hz={"ground_truth": 500.0}),
         Binding(JointPd(), inputs={"robot_output": "ROBOT_OUTPUT"},
                 outputs={"command": "ROBOT_INPUT"}, delay_us=300),
     ])

@@ -63,9 +63,8 @@ def test_short_flat_walk_in_the_harness_keeps_up_with_the_command():
 def test_judge_measures_the_pelvis_over_the_terrain_under_it():
     """On stairs a robot lying on the landing keeps its pelvis above 0.6 m: still a fall."""
     from sim.terrain import load_terrain
-    from tools.experiment import terrain_height
 
-    ground = terrain_height(load_terrain(HW_CONFIG_DIR / "terrains" / "stairs.yaml"))
+    ground = load_terrain(HW_CONFIG_DIR / "terrains" / "stairs.yaml").height_at
     assert ground(0.0, 0.0) == 0.0 and np.isclose(ground(0.7, 0.0), 0.15)
     assert np.isclose(ground(3.0, 0.0), 0.9)  # the landing
     judge = Judge([], walk_start_s=0.0, ground=ground)
