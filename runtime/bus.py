@@ -17,7 +17,10 @@ that only publishes joins none.
 
 Receiving reads the multicast sockets in the loop's own thread (``runtime.udpm``: LCM's wire
 format, without LCM's receive thread and its ~30 us hand-off per message on this VM);
-publishing goes through ``lcm.LCM``.
+publishing goes through ``lcm.LCM``. Each domain gets up to two sockets, each asking the
+kernel for its own channels only: one the loop waits on (its trigger), and one it reads when
+it ticks (the other inputs), so a loop wakes for its trigger and nothing else, as dairlib's
+LCM-driven loops do.
 """
 
 from __future__ import annotations
@@ -137,7 +140,8 @@ class Bus:
         self.channel_domains: dict[str, str] = dict(channel_domains or {})
         if url.startswith("udpm://"):
             check_multicast_route(url)
-        self._rx: dict[str, UdpmReceiver] = {}  # one socket per domain URL, joined on first use
+        #: receiving sockets per (domain URL, wakes the loop), joined on first use
+        self._rx: dict[tuple[str, bool], UdpmReceiver] = {}
         self._tx: dict[tuple[str, int], lcm.LCM] = {}  # publishing instance per (URL, ttl)
         self._subs: dict[str, Subscription] = {}
         self._seq: dict[str, int] = {}
@@ -169,8 +173,8 @@ class Bus:
         """Every distinct domain URL (for tools that listen to all of them)."""
         return list(dict.fromkeys(self.domains.values()))
 
-    def _receiver(self, url: str) -> UdpmReceiver:
-        rx = self._rx.get(url)
+    def _receiver(self, url: str, wake: bool = True) -> UdpmReceiver:
+        rx = self._rx.get((url, wake))
         if rx is None:
             if url.startswith("udpm://"):
                 check_multicast_route(url)
@@ -182,7 +186,7 @@ class Bus:
                     "hw_config/hosts.yaml (lcm.url) and that multicast is enabled on the "
                     "interface (`ip link show lo` should say MULTICAST)."
                 ) from exc
-            self._rx[url] = rx
+            self._rx[(url, wake)] = rx
         return rx
 
     def _sender(self, url: str, ttl: int) -> lcm.LCM:
@@ -199,12 +203,15 @@ class Bus:
         msg_type: type | None,
         policy: Policy = "newest",
         capacity: int = 4096,
+        wake: bool = True,
     ) -> Subscription:
-        """Subscribe to ``channel`` on its domain; ``msg_type`` None keeps raw bytes."""
+        """Subscribe to ``channel`` on its domain; ``msg_type`` None keeps raw bytes.
+        ``wake`` False: its messages are read by ``handle_pending`` but never make
+        ``filenos`` readable (a loop's non-trigger inputs)."""
         if channel in self._subs:
             return self._subs[channel]
         sub = Subscription(channel, msg_type, policy, capacity)
-        self._receiver(self.route(channel)[0]).subscribe(channel, sub._on_message)
+        self._receiver(self.route(channel)[0], wake).subscribe(channel, sub._on_message)
         self._subs[channel] = sub
         return sub
 
@@ -225,9 +232,9 @@ class Bus:
             self._receiver(url).subscribe(exact, callback)
 
     def filenos(self) -> list[int]:
-        """The file descriptors that become readable when a message arrives (one per joined
-        domain; none for a bus that only publishes)."""
-        return [rx.fileno() for rx in self._rx.values()]
+        """The file descriptors that become readable when a waking message arrives (one per
+        joined domain; none for a bus that only publishes)."""
+        return [rx.fileno() for (_, wake), rx in self._rx.items() if wake]
 
     def fileno(self) -> int:
         """The one descriptor of a single-domain bus (see ``filenos``)."""

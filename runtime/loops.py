@@ -114,8 +114,11 @@ class LiveRunner:
             if ch.udp is not None:
                 self.ports[role] = UdpReceiver(ch.udp, policy=policy)
             else:
+                # only the trigger wakes the loop (and every input wakes a receive thread);
+                # the others are read when it ticks
+                wake = role == node.trigger_role or node.receive_thread
                 self.ports[role] = self.bus.subscribe(
-                    ch.name, None if typ is bytes else typ, policy
+                    ch.name, None if typ is bytes else typ, policy, wake=wake
                 )
         for role in node.outputs:
             ch = self._channel(role, proc.outputs, "outputs")
@@ -178,16 +181,16 @@ class LiveRunner:
 
     # -- receiving -------------------------------------------------------------------------
     def _poll(self, timeout_s: float) -> None:
-        """Wait up to ``timeout_s`` for any input, then drain LCM and every UDP port."""
+        """Wait up to ``timeout_s`` for the trigger (or any input, with a receive thread),
+        then read everything waiting: LCM on every domain and every UDP port."""
         if timeout_s > 0:
             if not self._fds:
                 self.stop_event.wait(timeout_s)
-                return
-            try:
-                if not self._poller.poll(timeout_s * 1e3):
-                    return
-            except InterruptedError:
-                pass
+            else:
+                try:
+                    self._poller.poll(timeout_s * 1e3)
+                except InterruptedError:
+                    pass
         self.bus.handle_pending()
         for port in self._udp_in:
             port.drain()

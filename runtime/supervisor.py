@@ -87,10 +87,28 @@ class Child:
     ever_failed: bool = False
     command: list[str] | None = None  # a helper program instead of `cassie run NAME`
     heartbeat: bool = True  # sends TIMING (a Node); else ready once alive for a moment
+    _kids: dict[int, psutil.Process] = field(default_factory=dict)
 
     @property
     def pid(self) -> int:
         return self.popen.pid if self.popen is not None else 0
+
+    def kids(self, ps: psutil.Process) -> list[psutil.Process]:
+        """The process's live descendants, each kept (psutil needs the same object between
+        two cpu_percent calls)."""
+        try:
+            now = {k.pid: k for k in ps.children(recursive=True)}
+        except psutil.Error:
+            return []
+        for pid, k in now.items():
+            if pid not in self._kids:
+                self._kids[pid] = k
+                try:
+                    k.cpu_percent(None)
+                except psutil.Error:
+                    pass
+        self._kids = {pid: self._kids[pid] for pid in now}
+        return list(self._kids.values())
 
     def alive(self) -> bool:
         return self.popen is not None and self.popen.poll() is None
@@ -445,8 +463,17 @@ class Supervisor:
                 with child.ps.oneshot():
                     child.cpu_percent = child.ps.cpu_percent(None)
                     t = child.ps.cpu_times()
-                    child.cpu_s = t.user + t.system
                     child.rss_mb = child.ps.memory_info().rss / 2**20
+                # the whole process tree: a depth renderer or a viewer the process started
+                cpu_s = t.user + t.system + t.children_user + t.children_system
+                for kid in child.kids(child.ps):
+                    try:
+                        kt = kid.cpu_times()
+                        cpu_s += kt.user + kt.system
+                        child.cpu_percent += kid.cpu_percent(None)
+                    except psutil.Error:
+                        pass
+                child.cpu_s = cpu_s
                 child.priority = describe(child.pid)
                 aff = child.ps.cpu_affinity()
                 child.affinity = ("all" if len(aff) == (os.cpu_count() or len(aff))
@@ -607,8 +634,14 @@ def merge_logs(parts: list[Path], out: Path) -> int:
 
 
 def _lcm_logger() -> str:
-    """The lcm-logger that ships with the lcm package (beside this Python), else from PATH."""
+    """The lcm-logger binary that ships with the lcm package (its console script is a Python
+    wrapper that would cost a process of its own), else the one on PATH."""
     import shutil
 
+    import lcm
+
+    binary = Path(getattr(lcm, "LCM_BIN_DIR", "")) / "lcm-logger"
+    if binary.is_file():
+        return str(binary)
     here = Path(sys.executable).parent / "lcm-logger"
     return str(here) if here.exists() else (shutil.which("lcm-logger") or "lcm-logger")

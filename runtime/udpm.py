@@ -9,10 +9,15 @@ LCM (``lcm.LCM.publish``: one ``sendmsg``, ~1 us). The wire format is LCM's ``ud
 (``lcm/udpm_util.h``): a short message is one datagram ``"LC02" seqno channel\\0 payload``; a
 long one is fragments ``"LC03" seqno msg_size fragment_offset fragment_no fragments_in_msg``,
 the first carrying ``channel\\0``. Anything else on the port is counted and dropped.
+
+A receiver that only wants some channels asks the kernel to drop the rest (a classic BPF
+socket filter matching the channel name of short messages): the datagrams of a busy
+domain that it does not subscribe to never wake it, nor cost it a read.
 """
 
 from __future__ import annotations
 
+import ctypes
 import re
 import select
 import socket
@@ -32,6 +37,74 @@ MAX_MESSAGE = 1 << 28  # LCM_MAX_MESSAGE_SIZE
 MAX_PENDING_BYTES = 1 << 24  # fragment buffers in flight (LCM's MAX_FRAG_BUF_TOTAL_SIZE)
 MAX_PENDING = 1000  # messages being reassembled at once (LCM's MAX_NUM_FRAG_BUFS)
 IP_MULTICAST_ALL = 49  # Linux: 0 = only the groups this socket joined
+SO_ATTACH_FILTER = 26
+SO_DETACH_FILTER = 27
+_UDP_HEADER = 8  # a UDP socket's filter sees the UDP header first, then LCM's datagram
+
+
+class _SockFilter(ctypes.Structure):
+    _fields_ = [("code", ctypes.c_uint16), ("jt", ctypes.c_uint8), ("jf", ctypes.c_uint8),
+                ("k", ctypes.c_uint32)]
+
+
+class _SockFprog(ctypes.Structure):
+    _fields_ = [("len", ctypes.c_uint16), ("filter", ctypes.POINTER(_SockFilter))]
+
+
+_LD_W, _LD_H, _LD_B = 0x20, 0x28, 0x30  # BPF_LD | size | BPF_ABS
+_JEQ = 0x15  # BPF_JMP | BPF_JEQ | BPF_K
+_RET = 0x06  # BPF_RET | BPF_K
+
+
+def channel_filter(channels: list[str]) -> list[tuple[int, int, int, int]]:
+    """A classic BPF program that accepts LCM short messages on ``channels`` (exact names)
+    and every fragment of a long message (the first fragment names the channel, the others
+    cannot be judged), and drops everything else."""
+    prog: list[tuple[int, int, int, int]] = []
+    blocks = []
+    for name in channels:
+        data = name.encode("ascii") + b"\0"
+        checks = []
+        off = 0
+        while off < len(data):  # compare the name and its NUL terminator, 4/2/1 bytes at a time
+            n = 4 if len(data) - off >= 4 else (2 if len(data) - off >= 2 else 1)
+            op = {4: _LD_W, 2: _LD_H, 1: _LD_B}[n]
+            checks.append((op, int.from_bytes(data[off : off + n], "big"),
+                           _UDP_HEADER + 8 + off))
+            off += n
+        blocks.append(checks)
+    # layout: magic checks, then one block per channel (2 instructions per check), then the
+    # accept and the reject returns; a failed check jumps to the next block
+    prog.append((_LD_W, 0, 0, _UDP_HEADER))
+    prog.append((_JEQ, 0, 0, MAGIC_LONG))  # jt patched: -> accept
+    prog.append((_JEQ, 0, 0, MAGIC_SHORT))  # jf patched: -> reject
+    starts = []
+    for checks in blocks:
+        starts.append(len(prog))
+        for op, value, off in checks:
+            prog.append((op, 0, 0, off))
+            prog.append((_JEQ, 0, 0, value))
+    accept = len(prog)
+    reject = accept + 1
+    prog.append((_RET, 0, 0, 0xFFFFFFFF))
+    prog.append((_RET, 0, 0, 0))
+
+    def jump(frm: int, to: int) -> int:
+        d = to - frm - 1
+        if not 0 <= d <= 255:
+            raise ValueError("too many channels for one socket filter")
+        return d
+
+    out = list(prog)
+    out[1] = (_JEQ, jump(1, accept), 0, MAGIC_LONG)
+    out[2] = (_JEQ, 0, jump(2, reject), MAGIC_SHORT)
+    for b, checks in enumerate(blocks):
+        nxt = starts[b + 1] if b + 1 < len(blocks) else reject
+        for c in range(len(checks)):
+            i = starts[b] + 2 * c + 1
+            last = c == len(checks) - 1
+            out[i] = (_JEQ, jump(i, accept) if last else 0, jump(i, nxt), out[i][3])
+    return out
 
 Handler = Callable[[str, bytes], None]
 
@@ -55,7 +128,9 @@ class UdpmReceiver:
     each complete message. Non-blocking: the caller waits on ``fileno()`` (select) itself.
     """
 
-    def __init__(self, url: str, recv_buf_size: int | None = 2 << 20) -> None:
+    def __init__(self, url: str, recv_buf_size: int | None = 2 << 20,
+                 filtered: bool = True) -> None:
+        """``filtered``: let the kernel drop the channels nobody subscribed to here."""
         group, port = multicast_group(url)
         self.url = url
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
@@ -85,6 +160,8 @@ class UdpmReceiver:
         self._partial: OrderedDict[tuple[Any, int], _Partial] = OrderedDict()
         self._ignored: OrderedDict[tuple[Any, int], None] = OrderedDict()  # unwanted long msgs
         self._pending_bytes = 0
+        self._filtered = filtered
+        self._prog: Any = None  # the attached filter program (kept alive with the socket)
         self.received = 0  # complete messages
         self.bad = 0  # datagrams that are not LCM, or inconsistent fragments
         self.fragments_dropped = 0  # long messages given up (a fragment never came)
@@ -99,6 +176,26 @@ class UdpmReceiver:
         else:
             self._patterns.append((re.compile(channel_or_regex), handler))
         self._route.clear()
+        self._update_filter()
+
+    def _update_filter(self) -> None:
+        """Attach the channel filter (none once a regex subscription wants everything)."""
+        if not self._filtered:
+            return
+        if self._patterns:
+            if self._prog is not None:
+                self.sock.setsockopt(socket.SOL_SOCKET, SO_DETACH_FILTER, 0)
+                self._prog = None
+            return
+        try:
+            prog = channel_filter(sorted(self._exact))
+        except ValueError:  # more channels than one program can hold: take everything
+            return
+        arr = (_SockFilter * len(prog))(*[_SockFilter(*ins) for ins in prog])
+        fprog = _SockFprog(len(prog), arr)
+        self.sock.setsockopt(socket.SOL_SOCKET, SO_ATTACH_FILTER,
+                             ctypes.string_at(ctypes.addressof(fprog), ctypes.sizeof(fprog)))
+        self._prog = (arr, fprog)
 
     def unsubscribe(self, handler: Handler) -> None:
         for hs in self._exact.values():

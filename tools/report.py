@@ -1,10 +1,14 @@
 """`cassie report LOG`: a timing report from an LCM log (lcm-logger, or `cassie launch --log`).
 
 Per channel: message count, rate and gaps. Per loop (from the processes' own TIMING messages,
-which carry every tick's raw samples): execution time, lateness and input-age percentiles and
-deadline misses. Per hop (a message and the first message derived from it, matched by the
-``header.utime`` of the robot state both derive from): latency percentiles. Everything is
-checked against the budgets in ``hw_config/budgets.yaml``.
+which carry every tick's raw samples): execution time, CPU time, lateness and input-age
+percentiles and deadline misses. Per process: its share of a core (CPU seconds over wall
+seconds, all its threads) and CPU seconds per second of sim time, beside its budget, and the
+stack's total against the machine's (the supervisor's status adds the watchers: loggers,
+dashboard, the supervisor itself). Real time: the sim's real-time factor, a state for every
+sim packet, a torque for every sim step (from the nodes' counters). Per hop (a message and
+the first message derived from it, matched by the ``header.utime`` of the robot state both
+derive from): latency percentiles. Everything is checked against ``hw_config/budgets.yaml``.
 """
 
 from __future__ import annotations
@@ -37,10 +41,18 @@ def _types_by_fingerprint() -> dict[bytes, type]:
     return out
 
 
+LOOP_LIMITS = ("exec_median_ms", "exec_p99_ms", "exec_p999_ms", "exec_max_ms", "rate_min_hz",
+               "miss_ratio_max")
+REALTIME_LIMITS = ("rtf_min", "states_per_packet_min", "torques_per_step_min")
+
+
 @dataclass
 class Budgets:
     loops: dict[str, dict[str, float]] = field(default_factory=dict)
     hops: list[dict[str, Any]] = field(default_factory=list)
+    cpu: dict[str, float] = field(default_factory=dict)  # process -> max share of a core
+    cpu_total: float = 0.0  # max share of one core summed over every process
+    realtime: dict[str, float] = field(default_factory=dict)
 
 
 def load_budgets(path: Path) -> Budgets:
@@ -55,16 +67,29 @@ def load_budgets(path: Path) -> Budgets:
         if not isinstance(limits, dict):
             raise ConfigError(str(path), f"loops.{proc}", "must be a mapping of limits")
         for k, v in limits.items():
-            if k not in ("exec_median_ms", "exec_p99_ms", "exec_p999_ms", "exec_max_ms") or (
-                not isinstance(v, (int, float)) or v <= 0
-            ):
+            if k not in LOOP_LIMITS or not isinstance(v, (int, float)) or v <= 0:
                 raise ConfigError(
                     str(path),
                     f"loops.{proc}.{k}",
                     f"bad limit {v!r}",
-                    allowed="exec_median_ms, exec_p99_ms, exec_p999_ms, exec_max_ms: a number > 0",
+                    allowed=", ".join(LOOP_LIMITS) + ": a number > 0",
                 )
         loops[str(proc)] = {k: float(v) for k, v in limits.items()}
+    cpu: dict[str, float] = {}
+    total = 0.0
+    for proc, v in (data.get("cpu") or {}).items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or v <= 0:
+            raise ConfigError(str(path), f"cpu.{proc}", f"bad CPU share {v!r}",
+                              allowed="a share of one core > 0 (1.0 = a whole core)")
+        if proc == "total":
+            total = float(v)
+        else:
+            cpu[str(proc)] = float(v)
+    rt = data.get("realtime") or {}
+    for k, v in rt.items():
+        if k not in REALTIME_LIMITS or isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ConfigError(str(path), f"realtime.{k}", f"bad limit {v!r}",
+                              allowed=", ".join(REALTIME_LIMITS) + ": a number")
     hops = []
     for i, hop in enumerate(data.get("hops") or []):
         for end in ("from", "to"):
@@ -83,7 +108,7 @@ def load_budgets(path: Path) -> Budgets:
                 "p99_ms": float(hop.get("p99_ms", 0.0)),
             }
         )
-    return Budgets(loops, hops)
+    return Budgets(loops, hops, cpu, total, {k: float(v) for k, v in rt.items()})
 
 
 def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
@@ -92,6 +117,8 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
     arrivals: dict[str, list[int]] = defaultdict(list)
     undecodable: dict[str, int] = defaultdict(int)
     timing: dict[tuple[str, str], list[Any]] = defaultdict(list)
+    timing_ts: dict[tuple[str, str], list[int]] = defaultdict(list)  # log receive time, us
+    watchers: dict[str, list[tuple[int, float]]] = defaultdict(list)  # name -> (ts, cpu_s)
     hop_ends = {h["from"] for h in budgets.hops} | {h["to"] for h in budgets.hops}
     sent: dict[str, dict[int, int]] = defaultdict(dict)  # channel -> utime -> first send ns
     try:
@@ -113,6 +140,16 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
                 undecodable[event.channel] += 1
                 continue
             timing[(m.process, m.loop)].append(m)
+            timing_ts[(m.process, m.loop)].append(event.timestamp)
+        elif cls is lcmtypes.supervisor_status_t:
+            try:
+                st = cls.decode(event.data)
+            except Exception:
+                undecodable[event.channel] += 1
+                continue
+            for ps in st.processes:
+                if ps.cpu_s > 0:
+                    watchers[ps.name].append((event.timestamp, ps.cpu_s))
         elif event.channel in hop_ends:
             try:
                 h = cls.decode(event.data).header
@@ -134,9 +171,13 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
         }
     loops = {}
     for (proc, loop), msgs in sorted(timing.items()):
+        msgs = [m for m in msgs if m.kind != "main"]  # a non-Node process's start signal
+        if not msgs:
+            continue
         ex = np.concatenate([np.asarray(m.exec_ms, dtype=float) for m in msgs])
         la = np.concatenate([np.asarray(m.lateness_ms, dtype=float) for m in msgs])
         ag = np.concatenate([np.asarray(m.input_age_ms, dtype=float) for m in msgs])
+        cp = np.concatenate([np.asarray(m.cpu_ms, dtype=float) for m in msgs])
         ag = ag[ag >= 0]
         ticks = int(sum(m.ticks for m in msgs))
         misses = int(sum(m.deadline_misses for m in msgs))
@@ -145,7 +186,7 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
             "loop": loop,
             "kind": msgs[-1].kind,
             "ticks": ticks,
-            "rate_hz": float(np.median([m.rate_hz for m in msgs])),
+            "rate_hz": float(np.median([m.rate_hz for m in msgs if m.ticks] or [0.0])),
             "deadline_ms": msgs[-1].deadline_ms,
             "deadline_misses": misses,
             "miss_ratio": misses / ticks if ticks else 0.0,
@@ -154,12 +195,17 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
             "decode_errors": int(msgs[-1].decode_errors_total),
         }
         row.update(_pcts(ex, "exec"))
+        row.update(_pcts(cp, "cpu"))
         row.update(_pcts(la, "lateness"))
         row.update(_pcts(ag, "input_age"))
         limits = budgets.loops.get(proc, {})
-        row["budget"] = ", ".join(f"{k}<={v:g}" for k, v in limits.items())
-        row["within_budget"] = all(row.get(k, 0.0) <= v for k, v in limits.items())
+        row["budget"] = ", ".join(
+            f"{k}>={v:g}" if k.endswith("_min_hz") else f"{k}<={v:g}" for k, v in limits.items()
+        )
+        row["within_budget"] = all(_within(row, k, v) for k, v in limits.items())
         loops[f"{proc}/{loop}"] = row
+    cpu = _cpu_table(timing, timing_ts, watchers, budgets)
+    realtime = _realtime(timing, timing_ts, budgets)
     hops = {}
     for hop in budgets.hops:
         a, b = sent.get(hop["from"], {}), sent.get(hop["to"], {})
@@ -175,7 +221,168 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
             hop["p99_ms"] <= 0 or row["latency_p99_ms"] <= hop["p99_ms"]
         )
         hops[hop["name"]] = row
-    return {"channels": channels, "loops": loops, "hops": hops}
+    return {"channels": channels, "loops": loops, "hops": hops, "cpu": cpu, "realtime": realtime}
+
+
+def _within(row: dict[str, Any], key: str, limit: float) -> bool:
+    """A loop limit: exec_*_ms against the percentiles, rate_min_hz, miss_ratio_max."""
+    if key == "rate_min_hz":
+        return row["rate_hz"] >= limit
+    if key == "miss_ratio_max":
+        return row["miss_ratio"] <= limit
+    name = {"exec_median_ms": "exec_p50_ms"}.get(key, key)
+    return row.get(name, 0.0) <= limit
+
+
+def _span(ts: list[int], values: list[float]) -> tuple[float, float]:
+    """(value difference, wall seconds) between the first and last sample."""
+    if len(ts) < 2:
+        return 0.0, 0.0
+    return values[-1] - values[0], (ts[-1] - ts[0]) / 1e6
+
+
+def _cpu_table(
+    timing: dict[tuple[str, str], list[Any]],
+    timing_ts: dict[tuple[str, str], list[int]],
+    watchers: dict[str, list[tuple[int, float]]],
+    budgets: Budgets,
+) -> dict[str, Any]:
+    """Per process: share of a core (its CPU seconds over wall seconds, all its threads) and
+    CPU seconds per sim second; the watchers from the supervisor's status; the total."""
+    rows: dict[str, dict[str, Any]] = {}
+    sim_rate = float("nan")  # sim seconds per wall second, to give watchers a per-sim figure
+    for (proc, _loop), msgs in timing.items():
+        ts = timing_ts[(proc, _loop)]
+        keep = [i for i, m in enumerate(msgs) if m.kind != "main"]
+        if len(keep) < 2 or proc in rows:
+            continue
+        ms, tt = [msgs[i] for i in keep], [ts[i] for i in keep]
+        dcpu, dwall = _span(tt, [m.process_cpu_s for m in ms])
+        dsim = (ms[-1].header.utime - ms[0].header.utime) / 1e6
+        if proc == "sim" and dwall > 0:
+            sim_rate = dsim / dwall
+        rows[proc] = {
+            "source": "TIMING",
+            "cpu_s": dcpu,
+            "wall_s": dwall,
+            "cpu_share": dcpu / dwall if dwall > 0 else 0.0,
+            "cpu_per_sim_s": dcpu / dsim if dsim > 0 else float("nan"),
+        }
+    for name, samples in watchers.items():
+        if len(samples) < 2:
+            continue
+        # the supervisor's samples cover the whole process tree (a depth renderer too): they
+        # win where both exist
+        dcpu, dwall = _span([t for t, _ in samples], [c for _, c in samples])
+        share = dcpu / dwall if dwall > 0 else 0.0
+        per_sim = rows[name]["cpu_per_sim_s"] * share / rows[name]["cpu_share"] if (
+            name in rows and rows[name]["cpu_share"] > 0) else share / sim_rate
+        rows[name] = {"source": "supervisor", "cpu_s": dcpu, "wall_s": dwall,
+                      "cpu_share": share, "cpu_per_sim_s": per_sim}
+    for name, row in rows.items():
+        limit = budgets.cpu.get(name)
+        row["budget_share"] = limit if limit is not None else float("nan")
+        row["within_budget"] = limit is None or row["cpu_share"] <= limit
+    total = sum(r["cpu_share"] for r in rows.values())
+    return {
+        "processes": dict(sorted(rows.items())),
+        "total_share": total,
+        "total_budget": budgets.cpu_total,
+        "within_budget": budgets.cpu_total <= 0 or total <= budgets.cpu_total,
+    }
+
+
+def _counter_series(msgs: list[Any], ts: list[int], name: str) -> tuple[list[int], list[float]]:
+    out_t, out_v = [], []
+    for m, t in zip(msgs, ts, strict=True):
+        if name in m.counter_names:
+            out_t.append(t)
+            out_v.append(m.counter_values[m.counter_names.index(name)])
+    return out_t, out_v
+
+
+def _delta_between(t: list[int], v: list[float], t0: int, t1: int) -> float:
+    """Increase of a cumulative counter between wall times t0 and t1 (nearest samples)."""
+    if not t:
+        return 0.0
+    a = np.searchsorted(t, t0)
+    b = np.searchsorted(t, t1, side="right") - 1
+    a, b = min(max(a, 0), len(t) - 1), min(max(b, 0), len(t) - 1)
+    return v[b] - v[a] if b > a else 0.0
+
+
+def _realtime(
+    timing: dict[tuple[str, str], list[Any]],
+    timing_ts: dict[tuple[str, str], list[int]],
+    budgets: Budgets,
+) -> dict[str, Any]:
+    """The sim's real-time factor, states per sim packet, torques per sim step: from the
+    sim's and the estimator's counters, over the span both were running."""
+    by_proc = {p: (msgs, timing_ts[(p, lp)]) for (p, lp), msgs in timing.items()}
+    out: dict[str, Any] = {}
+    sim = by_proc.get("sim")
+    if sim is None:
+        return out
+    st, sv = _counter_series(*sim, "sim_time_s")
+    if len(st) >= 2:
+        out["rtf"] = (sv[-1] - sv[0]) / ((st[-1] - st[0]) / 1e6)
+    _, steps = _counter_series(*sim, "steps")
+    tt, sent = _counter_series(*sim, "packets_sent")
+    _, cmds = _counter_series(*sim, "commands_received")
+    if len(tt) >= 2 and steps and cmds:
+        # from the first torque received (the stack takes seconds to come up behind the sim)
+        first = next((i for i, c in enumerate(cmds) if c > 0), None)
+        if first is not None and first < len(tt) - 1:
+            ds = steps[-1] - steps[first]
+            out["torques_per_step"] = (cmds[-1] - cmds[first]) / ds if ds > 0 else 0.0
+    est = by_proc.get("state_estimator")
+    if est is not None and len(tt) >= 2:
+        et, pub = _counter_series(*est, "states_published")
+        if len(et) >= 2:
+            d_sent = _delta_between(tt, sent, et[0], et[-1])
+            out["states_per_packet"] = (pub[-1] - pub[0]) / d_sent if d_sent > 0 else 0.0
+    checks = {"rtf": "rtf_min", "states_per_packet": "states_per_packet_min",
+              "torques_per_step": "torques_per_step_min"}
+    out["budget"] = {k: budgets.realtime[v] for k, v in checks.items() if v in budgets.realtime}
+    out["within_budget"] = all(out.get(k, 0.0) >= lim for k, lim in out["budget"].items())
+    return out
+
+
+def print_cpu(cpu: dict[str, Any], out: Any = sys.stdout) -> None:
+    """The CPU table: each process's share of a core beside its budget, and the total."""
+    if not cpu or not cpu.get("processes"):
+        return
+    w = out.write
+    w("\nCPU (share of one core = CPU seconds / wall seconds, all threads; per sim second)\n"
+      "---\n")
+    w(f"{'process':<20}{'cpu s':>8}{'wall s':>8}{'share':>8}{'/sim s':>8}  budget\n")
+    for name, r in cpu["processes"].items():
+        b = r["budget_share"]
+        verdict = "" if b != b else ("ok" if r["within_budget"] else "OVER")
+        per_sim = "" if r["cpu_per_sim_s"] != r["cpu_per_sim_s"] else f"{r['cpu_per_sim_s']:.3f}"
+        w(f"{name:<20}{r['cpu_s']:>8.2f}{r['wall_s']:>8.1f}{r['cpu_share']:>8.3f}{per_sim:>8}"
+          f"  {'' if b != b else f'<={b:g}'} {verdict}\n")
+    tb = cpu["total_budget"]
+    verdict = "" if tb <= 0 else ("ok" if cpu["within_budget"] else
+                                  f"OVER by {cpu['total_share'] - tb:.3f} core")
+    w(f"{'total':<20}{'':>8}{'':>8}{cpu['total_share']:>8.3f}{'':>8}  "
+      f"{f'<={tb:g}' if tb > 0 else ''} {verdict}\n")
+
+
+def print_realtime(rt: dict[str, Any], out: Any = sys.stdout) -> None:
+    """Whether the sim kept wall-clock time and the chain answered every packet."""
+    if not rt or len(rt) <= 2:
+        return
+    w = out.write
+    w("\nReal time (from the sim's and the estimator's counters)\n---------\n")
+    names = {"rtf": "sim real-time factor", "states_per_packet": "states per sim packet",
+             "torques_per_step": "torques per sim step"}
+    for key, label in names.items():
+        if key not in rt:
+            continue
+        lim = rt["budget"].get(key)
+        verdict = "" if lim is None else ("ok" if rt[key] >= lim else "UNDER")
+        w(f"{label:<28}{rt[key]:>8.4f}  {'' if lim is None else f'>={lim:g}'} {verdict}\n")
 
 
 def _pcts(a: np.ndarray, prefix: str) -> dict[str, float]:
@@ -195,15 +402,16 @@ def print_loops(loops: dict[str, Any], out: Any = sys.stdout) -> None:
     w = out.write
     w("\nLoops (execution time; lateness; misses against the loop's deadline)\n-----\n")
     w(
-        f"{'loop':<28}{'Hz':>8}{'p50':>8}{'p99':>8}{'p99.9':>8}{'max':>8}{'late p99':>9}"
-        f"{'misses':>9}{'miss %':>8}  budget\n"
+        f"{'loop':<32}{'Hz':>8}{'p50':>8}{'p99':>8}{'p99.9':>8}{'max':>8}{'cpu p50':>8}"
+        f"{'late p99':>9}{'misses':>9}{'miss %':>8}  budget\n"
     )
     for name, r in loops.items():
         verdict = ("ok" if r["within_budget"] else "OVER") if r["budget"] else ""
         w(
-            f"{name:<28}{r['rate_hz']:>8.1f}{r['exec_p50_ms']:>8.3f}{r['exec_p99_ms']:>8.3f}"
-            f"{r['exec_p999_ms']:>8.3f}{r['exec_max_ms']:>8.2f}{r['lateness_p99_ms']:>9.3f}"
-            f"{r['deadline_misses']:>9}{100 * r['miss_ratio']:>8.3f}  {r['budget']} {verdict}\n"
+            f"{name:<32}{r['rate_hz']:>8.1f}{r['exec_p50_ms']:>8.3f}{r['exec_p99_ms']:>8.3f}"
+            f"{r['exec_p999_ms']:>8.3f}{r['exec_max_ms']:>8.2f}{r['cpu_p50_ms']:>8.3f}"
+            f"{r['lateness_p99_ms']:>9.3f}{r['deadline_misses']:>9}{100 * r['miss_ratio']:>8.3f}"
+            f"  {r['budget']} {verdict}\n"
         )
 
 
@@ -217,6 +425,8 @@ def print_report(rep: dict[str, Any], out: Any = sys.stdout) -> None:
             f"{r['gap_max_ms']:>12.2f}{r['undecodable']:>6}\n"
         )
     print_loops(rep["loops"], out)
+    print_cpu(rep.get("cpu", {}), out)
+    print_realtime(rep.get("realtime", {}), out)
     w("\nHops (latency, ms, matched by header.utime)\n----\n")
     w(f"{'hop':<34}{'n':>7}{'p50':>8}{'p99':>8}{'p99.9':>8}{'max':>8}  budget p99\n")
     for name, r in rep["hops"].items():
@@ -244,6 +454,15 @@ def flatten(rep: dict[str, Any]) -> dict[str, Any]:
         for k, v in r.items():
             if k.endswith("_ms") or k == "matched":
                 flat[f"hop_{key}_{k}"] = v
+    cpu = rep.get("cpu") or {}
+    for name, r in (cpu.get("processes") or {}).items():
+        flat[f"cpu_{name}_share"] = r["cpu_share"]
+        flat[f"cpu_{name}_per_sim_s"] = r["cpu_per_sim_s"]
+    if cpu:
+        flat["cpu_total_share"] = cpu["total_share"]
+    for k in ("rtf", "states_per_packet", "torques_per_step"):
+        if k in (rep.get("realtime") or {}):
+            flat[f"realtime_{k}_ratio"] = rep["realtime"][k]
     return flat
 
 

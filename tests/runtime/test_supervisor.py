@@ -143,3 +143,44 @@ def test_duration_run_prints_summary_and_exits_zero(lcm_url, procs, tmp_path):
     }
     # the loop rate column comes from the processes' own TIMING messages
     assert float(lines["ticker"].split()[6]) > 100.0
+
+
+def test_a_process_reporting_a_fault_fails_the_run_though_it_stays_alive(lcm_url, procs, tmp_path):
+    profile = tmp_path / "profile.yaml"
+    profile.write_text(
+        f"include: [{PROFILES / 'runtime.yaml'}]\nprofile: faulting\nlaunch: [ticker, faulty]\n"
+    )
+    sup = cassie("launch", str(profile), "--no-live", "--duration", "4",
+                 "--log-dir", str(tmp_path / "logs"))
+    procs.append(sup)
+    out, _ = sup.communicate(timeout=60)
+    assert sup.returncode == 1, out
+    assert "faulty reports a fault: fell over on purpose" in out
+    assert "fault: faulty: fell over on purpose" in out and "FAILED (faulty)" in out
+
+
+def test_readiness_comes_from_timing_and_the_cpu_column_is_a_real_average(lcm_url, procs,
+                                                                          tmp_path):
+    bus = Bus(lcm_url, source="test")
+    status = bus.subscribe("SUPERVISOR_STATUS", supervisor_status_t, policy="each")
+    sup = cassie("launch", str(PROFILES / "runtime.yaml"), "--no-live", "--duration", "6",
+                 "--log-dir", str(tmp_path / "logs"))
+    procs.append(sup)
+    seen: list[supervisor_status_t] = []
+
+    def poll() -> None:
+        bus.drain(0.1)
+        while (m := status.pop()) is not None:
+            seen.append(m)
+
+    wait_for(lambda: sup.poll() is not None, 60, poll=poll, what="the launch to end")
+    running = [m for m in seen if m.state == "running"]
+    assert len(running) >= 3
+    ticker = [next(p for p in m.processes if p.name == "ticker") for m in running]
+    assert all(t.state == "ready" for t in ticker)
+    assert all(0 <= t.last_message_age_s < 1.0 for t in ticker)  # its TIMING heartbeat
+    # sampled over a second, not a 1 ms glimpse: a 200 Hz Python loop is never 0.0 % of a core
+    assert all(t.cpu_percent > 0.0 for t in ticker[1:]), [t.cpu_percent for t in ticker]
+    assert ticker[-1].cpu_s > ticker[0].cpu_s > 0
+    me = next(p for p in running[-1].processes if p.name == "supervisor")
+    assert 0 <= me.cpu_percent < 10.0 and me.cpu_s > 0  # (psutil counts in 10 ms ticks)

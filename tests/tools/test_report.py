@@ -36,7 +36,8 @@ def test_report_of_a_logged_launch_prints_channels_loops_and_hops(lcm_url, procs
     procs.append(rep)
     text, _ = rep.communicate(timeout=120)
     assert rep.returncode == 0, text
-    for heading in ("Channels", "Loops", "Hops", "TEST_TICK", "ticker/ticker", "tick -> echo"):
+    for heading in ("Channels", "Loops", "Hops", "TEST_TICK", "ticker/ticker", "tick -> echo",
+                    "CPU (share of one core"):
         assert heading in text
     fig = json.loads((tmp_path / "report.json").read_text())
     assert fig["name"] == "report" and "machine" in fig
@@ -44,6 +45,10 @@ def test_report_of_a_logged_launch_prints_channels_loops_and_hops(lcm_url, procs
     assert fig["hop_tick_echo_matched"] > 300
     assert 0 < fig["hop_tick_echo_latency_p50_ms"] < fig["hop_tick_echo_latency_max_ms"]
     assert fig["loop_ticker_ticker_ticks"] > 300
+    # CPU: each process's share of a core, measured by itself (TIMING) or by the supervisor
+    assert 0 < fig["cpu_ticker_share"] < 0.5 and 0 < fig["cpu_echo_share"] < 0.5
+    assert 0 < fig["loop_ticker_ticker_cpu_p50_ms"] <= fig["loop_ticker_ticker_exec_p50_ms"] * 2
+    assert fig["cpu_total_share"] >= fig["cpu_ticker_share"] + fig["cpu_echo_share"]
     assert (tmp_path / "plots" / "loops_exec.png").exists()
 
 
