@@ -82,6 +82,19 @@ class Subscription(PortBuffer):
             msg_type._get_packed_fingerprint() if msg_type is not None else None  # type: ignore[attr-defined]
         )
         self.last_error: str = ""
+        #: lcm-gen encodes a struct as its fingerprint, then its fields in order, nested
+        #: structs without a fingerprint: a message whose first field is header_t carries
+        #: header.utime as big-endian int64 at bytes 8..16
+        self._header_first = msg_type is not None and next(
+            iter(getattr(msg_type, "__slots__", ())), None) == "header"
+
+    def newest_utime(self) -> int | None:
+        """``header.utime`` of the newest undecoded payload, read without decoding it (None
+        when there is none, or the type has no leading header)."""
+        raw = self._raw
+        if raw is None or not self._header_first or len(raw) < 16:
+            return None
+        return int.from_bytes(raw[8:16], "big", signed=True)
 
     def _on_message(self, _channel: str, data: bytes) -> None:
         self._stamp_arrival()

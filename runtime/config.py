@@ -326,13 +326,22 @@ def load_profile(path: str | Path) -> Profile:
     for hname, (value, file) in sections["hosts"].items():
         hc = _Checker(file)
         h = hc.mapping(value, f"hosts.{hname}")
-        hc.known_keys(h, f"hosts.{hname}", {"address", "description", "lcm_port_offset"})
+        hc.known_keys(h, f"hosts.{hname}",
+                      {"address", "description", "lcm_port_offset", "cpus"})
+        cpus = h.get("cpus")
+        if cpus is not None and (
+            not isinstance(cpus, list) or not cpus
+            or not all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in cpus)
+        ):
+            raise hc.fail(f"hosts.{hname}.cpus", f"must be a list of CPU numbers, got {cpus!r}",
+                          allowed=f"CPU numbers 0..{(os.cpu_count() or 1) - 1} on this machine")
         hosts[hname] = HostConfig(
             hname,
             hc.string(h, f"hosts.{hname}", "address"),
             str(h.get("description", "")),
             hc.number(h, f"hosts.{hname}", "lcm_port_offset", default=0, lo=0, hi=1000,
                       integer=True),
+            tuple(cpus) if cpus else None,
         )
 
     channels = {
@@ -384,7 +393,10 @@ def load_profile(path: str | Path) -> Profile:
                 )
     domains, channel_domains = _domains(url, host_buses, hosts, channels, processes, launch)
     sup = ck.mapping(data.get("supervisor") or {}, "supervisor")
-    ck.known_keys(sup, "supervisor", {"status_channel", "orders_channel", "timing_channel"})
+    ck.known_keys(sup, "supervisor",
+                  {"status_channel", "orders_channel", "timing_channel", "host"})
+    sup_host = ck.string(sup, "supervisor", "host", default="laptop" if "laptop" in hosts else "",
+                         choices=tuple(sorted(hosts)) or None) if hosts else ""
     # Relative paths in params (terrains, ...) resolve against hw_config/ when the profile builds
     # on the product configuration, else against the profile's own folder.
     if any(HW_CONFIG_DIR.resolve() in f.parents for f in seen):
@@ -406,6 +418,7 @@ def load_profile(path: str | Path) -> Profile:
         domains=domains,
         channel_domains=channel_domains,
         rtf=rtf,
+        supervisor_host=sup_host,
     )
 
 
@@ -630,7 +643,7 @@ def _process(
         ready_timeout_s=ready_timeout,
         restart=restart,
         required=ck.boolean(d, key, "required", True),
-        cpu_affinity=tuple(aff) if aff else None,
+        cpu_affinity=tuple(aff) if aff else (hosts[host].cpus if host in hosts else None),
         nice=nice,
         rt_priority=rt_priority,
         max_rate_hz=max_rate,

@@ -90,6 +90,9 @@ class HostConfig:
     address: str
     description: str = ""
     lcm_port_offset: int = 0  # this host's own LCM domain: the network URL's port + this
+    #: the CPUs that stand in for this host's computer: every process on the host is pinned
+    #: to them (unless it sets its own cpu_affinity); None: anywhere
+    cpus: tuple[int, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -106,6 +109,7 @@ class Profile:
     processes: dict[str, ProcessConfig]  # the catalog
     launch: tuple[str, ...]  # names to run, in the order given (the supervisor sorts by deps)
     timing_report_hz: float = 10.0
+    supervisor_host: str = ""  # where the supervisor and its helpers (loggers) run
     status_channel: str = "SUPERVISOR_STATUS"
     orders_channel: str = "SUPERVISOR_ORDERS"
     timing_channel: str = "TIMING"

@@ -38,6 +38,7 @@ from runtime.bus import Bus, Subscription
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.node import Node, OutputGates, SlotGate
 from runtime.port_buffer import PortInbox
+from runtime.scheduling import apply_scheduling
 from runtime.timing import LoopTimer
 from runtime.udp import UdpReceiver, UdpSender
 
@@ -220,6 +221,9 @@ class LiveRunner:
             gc.collect()
             gc.freeze()
             gc.disable()
+        # real-time priority only now: set-up work (numba, models) must not starve a core
+        for note in apply_scheduling(self.proc, realtime=True):
+            (log.warning if "failed" in note else log.info)(note)
         now = time.monotonic_ns()
         self.timer.start(now)
         self._report(now)  # the first TIMING: set up and running (the supervisor's "ready")
@@ -338,9 +342,15 @@ class LiveRunner:
                             break
                         self._tick_on(msg, port, deadline_ns)
                 else:
+                    gate = self.rate_gate
+                    if gate is not None and isinstance(port, Subscription):
+                        u = port.newest_utime()  # skip without decoding (every other state)
+                        if u is not None and not gate.open(u):
+                            port.discard()
+                            self.timer.rate_skipped_total += 1
+                            continue
                     msg = port.latest()
                     if msg is not None:
-                        gate = self.rate_gate
                         if gate is None or gate.admit(_utime(msg)):
                             self._tick_on(msg, port, deadline_ns)
                         else:

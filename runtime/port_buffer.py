@@ -84,6 +84,12 @@ class PortBuffer:
                 self._decoded = msg
                 return msg
 
+    def discard(self) -> None:
+        """Drop the newest payload unread (``newest`` policy): a trigger a rate limit skips."""
+        with self._lock:
+            self._raw = None
+            self.fresh = False
+
     def pending(self) -> int:
         return len(self._queue) if self.policy == "each" else int(self._raw is not None)
 

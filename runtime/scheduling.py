@@ -1,10 +1,12 @@
 """A process's own CPU scheduling: real-time priority, nice value, CPU affinity.
 
-A process applies these to itself when it starts (``cassie run``), before it creates any
-thread, so LCM's receive thread and a camera thread inherit them. A real-time priority is
-asked for with ``SCHED_RESET_ON_FORK``: a child it spawns (the depth renderer) runs at normal
-priority and can never hold up the loop that spawned it. Each setting is best-effort: one that
-cannot be applied (no permission) is reported, and the process runs on without it.
+A process applies its nice value and CPU affinity to itself when it starts (``cassie run``),
+and its real-time priority once its node is set up, just before its loop starts: compiling
+numba kernels or loading a model at SCHED_FIFO would starve everything else on that core for
+seconds. Threads the loop starts (a receive thread) inherit it. The priority is asked for
+with ``SCHED_RESET_ON_FORK``: a child it spawns runs at normal priority and can never hold up
+the loop. Each setting is best-effort: one that cannot be applied (no permission) is
+reported, and the process runs on without it.
 """
 
 from __future__ import annotations
@@ -13,9 +15,12 @@ import os
 from typing import Any
 
 
-def apply_scheduling(proc: Any) -> list[str]:
-    """Apply ``proc``'s ``rt_priority``, ``nice`` and ``cpu_affinity`` (a ``ProcessConfig``) to
-    this process; returns one line per setting saying what happened."""
+def apply_scheduling(proc: Any, realtime: bool = False) -> list[str]:
+    """Apply ``proc``'s ``nice`` and ``cpu_affinity`` (a ``ProcessConfig``) to this process,
+    or with ``realtime`` its ``rt_priority``; returns one line per setting saying what
+    happened."""
+    if realtime:
+        return _rt_priority(getattr(proc, "rt_priority", None))
     notes = []
     aff = getattr(proc, "cpu_affinity", None)
     if aff:
@@ -31,7 +36,11 @@ def apply_scheduling(proc: Any) -> list[str]:
             notes.append(f"nice {nice}: applied")
         except OSError as exc:
             notes.append(f"nice {nice}: failed ({exc.strerror})")
-    prio = getattr(proc, "rt_priority", None)
+    return notes
+
+
+def _rt_priority(prio: int | None) -> list[str]:
+    notes = []
     if prio is not None:
         try:
             os.sched_setscheduler(

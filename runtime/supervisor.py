@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import signal
 import subprocess
@@ -46,8 +47,15 @@ FAILED_STATES = ("failed", "crash_loop")
 _PR_SET_PDEATHSIG = 1
 
 
-def _child_preexec() -> None:  # runs in the child between fork and exec
+def _child_preexec(cpus: tuple[int, ...] | None = None) -> None:
+    """Runs in the child between fork and exec: its own process group, death with the
+    supervisor, and (helpers) its CPUs before it starts any thread."""
     os.setpgid(0, 0)
+    if cpus:
+        try:
+            os.sched_setaffinity(0, cpus)
+        except OSError:
+            pass
     try:
         libc = ctypes.CDLL("libc.so.6", use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
@@ -141,14 +149,28 @@ class Supervisor:
         self.children = {name: Child(profile.processes[name]) for name in self.order}
         self.bus = Bus.for_profile(profile, source="supervisor", recv_buf_size=1 << 20)
         self.log_parts: list[Path] = []
+        home = profile.hosts.get(profile.supervisor_host)
+        self.home_cpus = home.cpus if home is not None else None
+        self._all_cpus = tuple(sorted(os.sched_getaffinity(0)))  # children start unpinned
+        if self.home_cpus:  # the supervisor runs "on the laptop", as procman's sheriff would
+            try:
+                os.sched_setaffinity(0, self.home_cpus)
+            except OSError:
+                pass
         if log_lcm:
-            # one lcm-logger per LCM domain (a host's bus or the network), merged at the end
+            # one lcm-logger per LCM domain (a host's bus or the network), merged at the end;
+            # each runs on its host's CPUs, so logging a message never wakes the other CPU
+            by_url: dict[str, str] = {}
+            for name, url in profile.domains.items() or {"network": profile.lcm_url}.items():
+                by_url.setdefault(url, name)
             for i, url in enumerate(self.bus.urls()):
                 part = self.log_dir / (f"lcm.{i}.part.log")
                 self.log_parts.append(part)
-                self._add_helper(f"lcm_logger{'' if i == 0 else i}",
+                host = profile.hosts.get(by_url.get(url, ""))
+                self._add_helper(f"lcm_logger_{by_url.get(url, i)}",
                                  [_lcm_logger(), "--quiet", "--force", f"--lcm-url={url}",
-                                  str(part)], first=True, nice=10)
+                                  str(part)], first=True, nice=10,
+                                 cpus=host.cpus if host is not None else self.home_cpus)
         if dashboard:
             # Started before the stack so it sees everything; it records headless into the log
             # folder, and also opens a viewer where there is a display. It renices itself.
@@ -169,15 +191,16 @@ class Supervisor:
         self.bus.subscribe_raw(profile.orders_channel, self._on_order)
 
     def _add_helper(self, name: str, command: list[str], first: bool = False,
-                    nice: int | None = None) -> None:
+                    nice: int | None = None, cpus: tuple[int, ...] | None = None) -> None:
         """A supporting program (logger, dashboard): supervised, never required, no heartbeat."""
         proc = ProcessConfig(
             name=name,
-            host="laptop",
+            host=self.profile.supervisor_host or "laptop",
             module="",
             source_file=self.profile.path,
             required=False,
             nice=nice,
+            cpu_affinity=cpus if cpus is not None else getattr(self, "home_cpus", None),
             restart=RestartPolicy(policy="on-failure", max_restarts=3),
         )
         child = Child(proc, command=command, heartbeat=False)
@@ -266,7 +289,11 @@ class Supervisor:
             stdin=subprocess.DEVNULL,
             cwd=str(REPO_ROOT),
             env=env,
-            preexec_fn=_child_preexec,
+            preexec_fn=functools.partial(
+                _child_preexec,
+                (child.proc.cpu_affinity or self._all_cpus) if child.command is not None
+                else self._all_cpus,  # `cassie run` pins itself to its host's CPUs
+            ),
         )
         child.state = "starting"
         child.started_at = time.monotonic()
@@ -280,9 +307,10 @@ class Supervisor:
             child.ps.cpu_percent(None)
         except psutil.Error:
             child.ps = None
-        if child.command is not None and child.proc.nice is not None:
-            try:  # a helper program; `cassie run` children apply their own (runtime.scheduling)
-                os.setpriority(os.PRIO_PROCESS, child.pid, child.proc.nice)
+        if child.command is not None:  # a helper program (`cassie run` applies its own)
+            try:
+                if child.proc.nice is not None:
+                    os.setpriority(os.PRIO_PROCESS, child.pid, child.proc.nice)
             except OSError:
                 pass
 

@@ -295,7 +295,8 @@ class SimNode(Node):
     }
 
     def __init__(self, settings: SimSettings, mode: Mode, rate_hz: float = 2000.0,
-                 drive: Drive = "auto", publish_footholds: bool = False) -> None:
+                 drive: Drive = "auto", publish_footholds: bool = False,
+                 rtf: float = 1.0) -> None:
         self.settings = settings
         self._footholds: foothold_set_t | None = None
         if publish_footholds:  # an extra output role, bound in hw_config like the others
@@ -332,6 +333,7 @@ class SimNode(Node):
         # periodic: as many physics steps per tick as fit the period (1 at 2 kHz)
         ratio = self.period_s / self.core.dt
         self.steps_per_tick = max(1, round(ratio))
+        self.tpc.stats.target_rtf = rtf
         if drive == "periodic":
             self.tpc.stats.period_s = self.period_s
             if abs(ratio - self.steps_per_tick) > 1e-6:
@@ -574,6 +576,6 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     fh = _bool(file, proc.key("params", "publish_footholds"),
                proc.params.get("publish_footholds", False))
     rate = proc.rate_hz if proc.rate_hz else 2000.0
-    node = SimNode(settings, profile.mode, rate, drive, fh)
+    node = SimNode(settings, profile.mode, rate, drive, fh, profile.rtf)
     node.name = proc.name
     return node

@@ -224,9 +224,12 @@ class LoopStats:
     since the previous tick; the real-time factor is sim time over wall time per window.
     """
 
-    def __init__(self, period_s: float, window_s: float = 1.0) -> None:
+    def __init__(self, period_s: float, window_s: float = 1.0, target_rtf: float = 1.0) -> None:
         self.period_s = period_s
         self.window_s = window_s
+        #: the real-time factor asked for (profile ``rtf``): "slower than real time" is
+        #: relative to it, and a tick's wall-clock period is period_s / target_rtf
+        self.target_rtf = target_rtf
         self.ticks = 0
         self.overruns = 0
         self.last_task_s = 0.0
@@ -243,7 +246,7 @@ class LoopStats:
         self.last_task_s = task_s
         if task_s > self.max_task_s:
             self.max_task_s = task_s
-        if task_s > self.period_s or skipped > 0:
+        if task_s > self.period_s / self.target_rtf or skipped > 0:
             self.overruns += max(skipped, 1)
         now = time.monotonic() if wall is None else wall
         if self._w0_wall is None:
@@ -252,7 +255,7 @@ class LoopStats:
         elapsed = now - self._w0_wall
         if elapsed >= self.window_s:
             self.rtf = (sim_time - self._w0_sim) / elapsed
-            slow = self.rtf < 0.98
+            slow = self.rtf < 0.98 * self.target_rtf
             if slow:
                 self.slow_windows += 1
                 if not self.slower_than_realtime or self.slow_windows % 10 == 1:

@@ -44,7 +44,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
     proc = profile.processes[args.process]
     log = logging.getLogger(proc.name)
-    # before any thread exists (LCM's receive thread, a camera thread), so they inherit it
+    # nice and affinity now, before any thread or child exists; the real-time priority once
+    # the node is set up (runtime.loops.LiveRunner.run)
     for note in apply_scheduling(proc):
         (log.warning if "failed" in note else log.info)(note)
     module = importlib.import_module(proc.module)

@@ -395,6 +395,8 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
         # lockstep results must not depend on how busy the machine is: no wall-clock budget
         # (the search is finite: at most enumerate_max_leaves leaves, or the B&B tree)
         params = dataclasses.replace(params, time_limit_ms=math.inf)
+    elif profile.rtf < 1.0:  # a slower machine running at a fraction of real time
+        params = dataclasses.replace(params, time_limit_ms=params.time_limit_ms / profile.rtf)
     return MpfcNode(
         params,
         "channel" if spec == "channel" else "static",

@@ -72,13 +72,15 @@ class TorqueBridgeNode(Node):
         self.bridge = TorqueBridge(self.params)
         self.link = LinkCounter()
         self.pkt = InputPacket()
-        self._dofs: np.ndarray | None = None
+        self._dofs: list[int] = []
+        self._dof_max = -1
         self._mv = np.zeros(NUM_MOTORS)
         self._msg = applied_input_t()
         self._msg.num_motors = NUM_MOTORS
 
     def setup(self, ctx: Context) -> None:
-        self._dofs = motor_dofs()
+        self._dofs = [int(i) for i in motor_dofs()]
+        self._dof_max = max(self._dofs)
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:
         b = self.bridge
@@ -100,7 +102,7 @@ class TorqueBridgeNode(Node):
                 if cmd is not None:
                     b.on_command(cmd.torque, cmd.header.utime)
         v = state.v
-        if self._dofs is not None and len(v) > int(self._dofs.max()):
+        if self._dofs and len(v) > self._dof_max:
             self._mv[:] = [v[i] for i in self._dofs]
         else:
             self._mv[:] = np.nan  # malformed state: the damping fallback degrades to zero
