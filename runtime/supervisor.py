@@ -15,7 +15,8 @@
   misses, scheduling and the node's own status line (the controller's mode, the robot's
   distance walked); a ``--duration`` run fails when a required process failed or reported a
   fault (a controller in safe mode, a robot that fell).
-* ``--log``: one ``lcm-logger`` per LCM domain, merged into ``LOG_DIR/lcm.log`` at the end.
+* ``--log``: every LCM domain into ``LOG_DIR/lcm.log`` (``cassie log``: batched reads with
+  kernel arrival times, so recording wakes no control loop's CPU per message).
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ import subprocess
 import sys
 import time
 from collections import deque
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -148,7 +148,6 @@ class Supervisor:
         self.order = check_depends(profile)
         self.children = {name: Child(profile.processes[name]) for name in self.order}
         self.bus = Bus.for_profile(profile, source="supervisor", recv_buf_size=1 << 20)
-        self.log_parts: list[Path] = []
         home = profile.hosts.get(profile.supervisor_host)
         self.home_cpus = home.cpus if home is not None else None
         self._all_cpus = tuple(sorted(os.sched_getaffinity(0)))  # children start unpinned
@@ -158,19 +157,14 @@ class Supervisor:
             except OSError:
                 pass
         if log_lcm:
-            # one lcm-logger per LCM domain (a host's bus or the network), merged at the end;
-            # each runs on its host's CPUs, so logging a message never wakes the other CPU
-            by_url: dict[str, str] = {}
-            for name, url in profile.domains.items() or {"network": profile.lcm_url}.items():
-                by_url.setdefault(url, name)
-            for i, url in enumerate(self.bus.urls()):
-                part = self.log_dir / (f"lcm.{i}.part.log")
-                self.log_parts.append(part)
-                host = profile.hosts.get(by_url.get(url, ""))
-                self._add_helper(f"lcm_logger_{by_url.get(url, i)}",
-                                 [_lcm_logger(), "--quiet", "--force", f"--lcm-url={url}",
-                                  str(part)], first=True, nice=10,
-                                 cpus=host.cpus if host is not None else self.home_cpus)
+            # every domain (each host's bus and the network) into one log, read in batches so
+            # that recording never wakes anyone's CPU per message (tools/logger.py)
+            self._add_helper(
+                "logger",
+                [sys.executable, "-m", "tools.cli", "log", str(profile.path),
+                 str(self.log_dir / "lcm.log")],
+                first=True, nice=10,
+            )
         if dashboard:
             # Started before the stack so it sees everything; it records headless into the log
             # folder, and also opens a viewer where there is a display. It renices itself.
@@ -381,7 +375,6 @@ class Supervisor:
             self.publish_status()
             for s, h in old.items():
                 signal.signal(s, h)
-        self._merge_logs()
         self._print_summary()
         return 1 if self._required_failed() or self._faults() else 0
 
@@ -601,20 +594,6 @@ class Supervisor:
             self.out.write(text)
         self.out.flush()
 
-    def _merge_logs(self) -> None:
-        if not self.log_parts:
-            return
-        out = self.log_dir / "lcm.log"
-        try:
-            n = merge_logs(self.log_parts, out)
-        except Exception as exc:  # keep the parts: nothing recorded is lost
-            self.out.write(f"could not merge the LCM logs into {out} ({exc}); the parts are "
-                           f"{', '.join(map(str, self.log_parts))}\n")
-            return
-        for part in self.log_parts:
-            part.unlink(missing_ok=True)
-        self.out.write(f"LCM log: {out} ({n} messages from {len(self.log_parts)} domains)\n")
-
     def _print_summary(self) -> None:
         self.out.write(
             f"\nsummary of profile {self.profile.name} after "
@@ -632,44 +611,3 @@ class Supervisor:
                 bad.append(name)
         self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")
         self.out.flush()
-
-
-def merge_logs(parts: list[Path], out: Path) -> int:
-    """Merge LCM logs into one, in receive-time order (one lcm-logger ran per domain); returns
-    the number of events. Stock tools (lcm-logplayer, lcm-spy) then see the whole stack."""
-    import heapq
-
-    import lcm
-
-    logs = [lcm.EventLog(str(p), "r") for p in parts if p.exists() and p.stat().st_size]
-
-    def events(log: lcm.EventLog) -> Iterator[lcm.Event]:
-        # read_next_event, not iter(): EventLog's iterator rewinds, which heapq.merge trips on
-        while (ev := log.read_next_event()) is not None:
-            yield ev
-
-    merged = lcm.EventLog(str(out), "w", overwrite=True)
-    n = 0
-    for ev in heapq.merge(*map(events, logs), key=lambda e: e.timestamp):
-        if ev.channel == "LCM_SELF_TEST":
-            continue
-        merged.write_event(ev.timestamp, ev.channel, ev.data)
-        n += 1
-    merged.close()
-    for log in logs:
-        log.close()
-    return n
-
-
-def _lcm_logger() -> str:
-    """The lcm-logger binary that ships with the lcm package (its console script is a Python
-    wrapper that would cost a process of its own), else the one on PATH."""
-    import shutil
-
-    import lcm
-
-    binary = Path(getattr(lcm, "LCM_BIN_DIR", "")) / "lcm-logger"
-    if binary.is_file():
-        return str(binary)
-    here = Path(sys.executable).parent / "lcm-logger"
-    return str(here) if here.exists() else (shutil.which("lcm-logger") or "lcm-logger")

@@ -38,6 +38,9 @@ MAX_PENDING_BYTES = 1 << 24  # fragment buffers in flight (LCM's MAX_FRAG_BUF_TO
 MAX_PENDING = 1000  # messages being reassembled at once (LCM's MAX_NUM_FRAG_BUFS)
 IP_MULTICAST_ALL = 49  # Linux: 0 = only the groups this socket joined
 SO_ATTACH_FILTER = 26
+SO_TIMESTAMPNS = 35  # (SCM_TIMESTAMPNS: a struct timespec of the arrival, CLOCK_REALTIME)
+SO_RXQ_OVFL = 40  # ancillary uint32: datagrams the kernel dropped on this socket (buffer full)
+_TIMESPEC = struct.Struct("@qq")
 SO_DETACH_FILTER = 27
 _UDP_HEADER = 8  # a UDP socket's filter sees the UDP header first, then LCM's datagram
 
@@ -129,8 +132,10 @@ class UdpmReceiver:
     """
 
     def __init__(self, url: str, recv_buf_size: int | None = 2 << 20,
-                 filtered: bool = True) -> None:
-        """``filtered``: let the kernel drop the channels nobody subscribed to here."""
+                 filtered: bool = True, timestamps: bool = False) -> None:
+        """``filtered``: let the kernel drop the channels nobody subscribed to here.
+        ``timestamps``: note each datagram's kernel arrival time (``last_recv_utime``, wall
+        clock, us), so a reader that drains in batches still logs when each message came."""
         group, port = multicast_group(url)
         self.url = url
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
@@ -148,6 +153,15 @@ class UdpmReceiver:
         s.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, mreq)
         s.setblocking(False)
         self.sock = s
+        self.timestamps = timestamps
+        self.last_recv_utime = 0
+        self.kernel_dropped = 0  # (timestamps mode) datagrams lost to a full socket buffer
+        if timestamps:
+            s.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+            try:
+                s.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+            except OSError:
+                pass
         # "is a datagram waiting?" without a failed read: Python raises on EAGAIN, and an
         # exception per drain costs more on this VM than one poll(0)
         self._ready = select.poll()
@@ -217,9 +231,21 @@ class UdpmReceiver:
         """Read every waiting datagram; returns the number of complete messages handled."""
         n = 0
         sock, buf, view, ready = self.sock, self._buf, self._view, self._ready.poll
+        stamped = self.timestamps
         while ready(0):
             try:
-                size, sender = sock.recvfrom_into(buf)
+                if stamped:
+                    size, anc, _, sender = sock.recvmsg_into([buf], 64)
+                    for level, kind, data in anc:
+                        if level != socket.SOL_SOCKET:
+                            continue
+                        if kind == SO_TIMESTAMPNS:
+                            sec, nsec = _TIMESPEC.unpack_from(data)
+                            self.last_recv_utime = sec * 1_000_000 + nsec // 1000
+                        elif kind == SO_RXQ_OVFL and len(data) >= 4:
+                            self.kernel_dropped = int.from_bytes(data[:4], "little")
+                else:
+                    size, sender = sock.recvfrom_into(buf)
             except OSError:  # (BlockingIOError: another reader took it)
                 return n
             if size < 8:

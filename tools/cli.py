@@ -148,6 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("dashboard", help="the Rerun dashboard", add_help=False)
     sub.add_parser("report", help="timing report from an LCM log", add_help=False)
     sub.add_parser("command", help="send a velocity command (the radio)", add_help=False)
+    sub.add_parser("log", help="record every LCM domain of a profile into one LCM log",
+                   add_help=False)
     return p
 
 
@@ -162,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "bench":
             return _cmd_bench(args, rest)
-        if args.command in ("experiment", "dashboard", "report", "command"):
+        if args.command in ("experiment", "dashboard", "report", "command", "log"):
             return _cmd_module(f"tools.{args.command}", rest)
         if rest:
             parser.error(f"unrecognized arguments: {' '.join(rest)}")
