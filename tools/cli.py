@@ -165,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "bench":
             return _cmd_bench(args, rest)
         if args.command in ("experiment", "dashboard", "report", "command", "log"):
-            return _cmd_module(f"tools.{args.command}", rest)
+            module = {"log": "logger"}.get(args.command, args.command)
+            return _cmd_module(f"tools.{module}", rest)
         if rest:
             parser.error(f"unrecognized arguments: {' '.join(rest)}")
         if args.command == "launch":
