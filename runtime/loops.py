@@ -109,6 +109,12 @@ class LiveRunner:
         self.ports: dict[str, Port] = {}
         self._udp_out: dict[str, UdpSender] = {}
         self._lcm_out: dict[str, str] = {}
+        thin = (
+            round(1e6 / proc.max_rate_hz)
+            if proc.max_rate_hz and node.trigger_role and profile.mode == "realtime"
+            and node.trigger_policy == "newest" and not node.receive_thread
+            else None
+        )
         for role, typ in node.inputs.items():
             ch = self._channel(role, proc.inputs, "inputs")
             policy = node.trigger_policy if role == node.trigger_role else "newest"
@@ -116,10 +122,12 @@ class LiveRunner:
                 self.ports[role] = UdpReceiver(ch.udp, policy=policy)
             else:
                 # only the trigger wakes the loop (and every input wakes a receive thread);
-                # the others are read when it ticks
+                # the others are read when it ticks. A rate-limited trigger is thinned by the
+                # kernel too: the 1 kHz OSC is not even woken by the states it would skip
                 wake = role == node.trigger_role or node.receive_thread
                 self.ports[role] = self.bus.subscribe(
-                    ch.name, None if typ is bytes else typ, policy, wake=wake
+                    ch.name, None if typ is bytes else typ, policy, wake=wake,
+                    slot_us=thin if role == node.trigger_role else None,
                 )
         for role in node.outputs:
             ch = self._channel(role, proc.outputs, "outputs")

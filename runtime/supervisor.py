@@ -353,7 +353,7 @@ class Supervisor:
             last_status = 0.0
             last_table = 0.0
             while ok and not self._stop_requested:
-                self.bus.drain(0.1)
+                self.bus.poll_every(0.1)  # batched: no publisher ever wakes it
                 now = time.monotonic()
                 self._supervise(now)
                 if now - last_status >= 1.0:
@@ -400,7 +400,7 @@ class Supervisor:
         deadline = time.monotonic() + child.proc.ready_timeout_s
         last_status = 0.0
         while time.monotonic() < deadline and not self._stop_requested:
-            self.bus.drain(0.05)
+            self.bus.poll_every(0.05)
             now = time.monotonic()
             if now - last_status >= 1.0:  # the status goes on while processes start
                 self._sample_resources(now)

@@ -59,55 +59,66 @@ _JEQ = 0x15  # BPF_JMP | BPF_JEQ | BPF_K
 _RET = 0x06  # BPF_RET | BPF_K
 
 
-def channel_filter(channels: list[str]) -> list[tuple[int, int, int, int]]:
+_MOD_K = 0x94  # BPF_ALU | BPF_MOD | BPF_K
+_JGE = 0x35  # BPF_JMP | BPF_JGE | BPF_K
+_JA = 0x05  # BPF_JMP | BPF_JA
+
+
+def channel_filter(channels: dict[str, int | None]) -> list[tuple[int, int, int, int]]:
     """A classic BPF program that accepts LCM short messages on ``channels`` (exact names)
     and every fragment of a long message (the first fragment names the channel, the others
-    cannot be judged), and drops everything else."""
-    prog: list[tuple[int, int, int, int]] = []
-    blocks = []
-    for name in channels:
+    cannot be judged), and drops everything else.
+
+    A channel given a slot (us) is also thinned in the kernel: only messages whose
+    ``header.utime`` falls in the first half of a slot (``utime mod slot < slot / 2``) pass,
+    so a 1 kHz loop on 2 kHz states is woken by every other state only. (The low 32 bits of
+    the big-endian utime, at its fixed place after the channel name and the type's
+    fingerprint; they stay in step with the full utime for any slot dividing 2^32 us, and
+    for others still alternate the same way.)
+    """
+    code: list[list[int | str]] = []  # [op, jt, jf, k]; jt/jf/k may name a label
+    labels: dict[str, int] = {}
+    code.append([_LD_W, 0, 0, _UDP_HEADER])
+    code.append([_JEQ, "accept", 0, MAGIC_LONG])
+    code.append([_JEQ, 0, "reject", MAGIC_SHORT])
+    names = sorted(channels)
+    for b, name in enumerate(names):
+        labels[f"ch{b}"] = len(code)
+        nxt = f"ch{b + 1}" if b + 1 < len(names) else "reject"
         data = name.encode("ascii") + b"\0"
-        checks = []
         off = 0
         while off < len(data):  # compare the name and its NUL terminator, 4/2/1 bytes at a time
             n = 4 if len(data) - off >= 4 else (2 if len(data) - off >= 2 else 1)
             op = {4: _LD_W, 2: _LD_H, 1: _LD_B}[n]
-            checks.append((op, int.from_bytes(data[off : off + n], "big"),
-                           _UDP_HEADER + 8 + off))
+            code.append([op, 0, 0, _UDP_HEADER + 8 + off])
+            code.append([_JEQ, 0, nxt, int.from_bytes(data[off : off + n], "big")])
             off += n
-        blocks.append(checks)
-    # layout: magic checks, then one block per channel (2 instructions per check), then the
-    # accept and the reject returns; a failed check jumps to the next block
-    prog.append((_LD_W, 0, 0, _UDP_HEADER))
-    prog.append((_JEQ, 0, 0, MAGIC_LONG))  # jt patched: -> accept
-    prog.append((_JEQ, 0, 0, MAGIC_SHORT))  # jf patched: -> reject
-    starts = []
-    for checks in blocks:
-        starts.append(len(prog))
-        for op, value, off in checks:
-            prog.append((op, 0, 0, off))
-            prog.append((_JEQ, 0, 0, value))
-    accept = len(prog)
-    reject = accept + 1
-    prog.append((_RET, 0, 0, 0xFFFFFFFF))
-    prog.append((_RET, 0, 0, 0))
-
-    def jump(frm: int, to: int) -> int:
-        d = to - frm - 1
-        if not 0 <= d <= 255:
-            raise ValueError("too many channels for one socket filter")
-        return d
-
-    out = list(prog)
-    out[1] = (_JEQ, jump(1, accept), 0, MAGIC_LONG)
-    out[2] = (_JEQ, 0, jump(2, reject), MAGIC_SHORT)
-    for b, checks in enumerate(blocks):
-        nxt = starts[b + 1] if b + 1 < len(blocks) else reject
-        for c in range(len(checks)):
-            i = starts[b] + 2 * c + 1
-            last = c == len(checks) - 1
-            out[i] = (_JEQ, jump(i, accept) if last else 0, jump(i, nxt), out[i][3])
+        slot = channels[name]
+        if slot:
+            utime_low = _UDP_HEADER + 8 + len(data) + 8 + 4
+            code.append([_LD_W, 0, 0, utime_low])
+            code.append([_MOD_K, 0, 0, int(slot)])
+            code.append([_JGE, "reject", 0, int(slot) // 2])
+        code.append([_JA, 0, 0, "accept"])
+    labels["accept"] = len(code)
+    code.append([_RET, 0, 0, 0xFFFFFFFF])
+    labels["reject"] = len(code)
+    code.append([_RET, 0, 0, 0])
+    out = []
+    for i, (op, jt, jf, k) in enumerate(code):
+        def rel(x: int | str, i: int = i) -> int:
+            if isinstance(x, int):
+                return x
+            d = labels[x] - i - 1
+            if not 0 <= d <= 255:
+                raise ValueError("too many channels for one socket filter")
+            return d
+        if op == _JA:
+            out.append((op, 0, 0, labels[str(k)] - i - 1))
+        else:
+            out.append((int(op), rel(jt), rel(jf), int(k)))  # type: ignore[arg-type]
     return out
+
 
 Handler = Callable[[str, bytes], None]
 
@@ -169,6 +180,7 @@ class UdpmReceiver:
         self._buf = bytearray(65536)
         self._view = memoryview(self._buf)
         self._exact: dict[str, list[Handler]] = {}
+        self._slots: dict[str, int] = {}  # channel -> kernel-side slot thinning (us)
         self._patterns: list[tuple[re.Pattern[str], Handler]] = []
         self._route: dict[str, list[Handler]] = {}  # channel -> handlers, memoised
         self._partial: OrderedDict[tuple[Any, int], _Partial] = OrderedDict()
@@ -183,10 +195,15 @@ class UdpmReceiver:
     def fileno(self) -> int:
         return self.sock.fileno()
 
-    def subscribe(self, channel_or_regex: str, handler: Handler) -> None:
-        """Call ``handler(channel, payload)`` for every message on a matching channel."""
+    def subscribe(self, channel_or_regex: str, handler: Handler,
+                  slot_us: int | None = None) -> None:
+        """Call ``handler(channel, payload)`` for every message on a matching channel.
+        ``slot_us`` (an exact channel whose type starts with a header): let the kernel pass
+        only messages in the first half of each slot of that many microseconds."""
         if re.fullmatch(r"[A-Za-z0-9_]+", channel_or_regex):
             self._exact.setdefault(channel_or_regex, []).append(handler)
+            if slot_us:
+                self._slots[channel_or_regex] = int(slot_us)
         else:
             self._patterns.append((re.compile(channel_or_regex), handler))
         self._route.clear()
@@ -202,7 +219,7 @@ class UdpmReceiver:
                 self._prog = None
             return
         try:
-            prog = channel_filter(sorted(self._exact))
+            prog = channel_filter({c: self._slots.get(c) for c in self._exact})
         except ValueError:  # more channels than one program can hold: take everything
             return
         arr = (_SockFilter * len(prog))(*[_SockFilter(*ins) for ins in prog])
