@@ -86,8 +86,27 @@ def test_garbage_on_the_port_is_counted_not_raised(url: str) -> None:
     assert rx.bad >= 4
 
 
+def test_the_kernel_thins_a_rate_limited_channel_to_the_first_half_of_each_slot(url: str):
+    from lcmtypes import robot_state_t
+
+    rx = UdpmReceiver(url)
+    got: list[int] = []
+    rx.subscribe("CASSIE_STATE", lambda c, d: got.append(robot_state_t.decode(d).header.utime),
+                 slot_us=1000)
+    tx = lcm.LCM(url + "?ttl=0")
+    # 2 kHz states, across the wrap of utime's low 32 bits (71.6 min of sim time)
+    utimes = [2**32 - 3000 + 500 * k for k in range(20)]
+    for u in utimes:
+        m = robot_state_t()
+        m.header.utime = u
+        tx.publish("CASSIE_STATE", m.encode())
+    _drain(rx)
+    assert got == utimes[0::2]  # every other one, none twice, the alternation kept
+    assert rx.received == 10
+
+
 def test_a_filter_program_accepts_exactly_the_names_it_was_built_for() -> None:
-    prog = channel_filter(["CASSIE_STATE", "OSC_TORQUE"])
+    prog = channel_filter({"CASSIE_STATE": None, "OSC_TORQUE": 1000})
     # magic checks, 2 instructions per 4/2/1-byte compare of "name\0", and the two returns
     assert prog[-2][0] == 0x06 and prog[-1] == (0x06, 0, 0, 0)
     assert all(0 <= jt <= 255 and 0 <= jf <= 255 for _, jt, jf, _ in prog)
