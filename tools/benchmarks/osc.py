@@ -6,6 +6,12 @@ node of ``hw_config/sim.yaml``, solved at 200 Hz on the true state). A fresh con
 replays each recording in order, and every ``update`` call is timed (wall clock), with piqp's
 share measured separately. The collector is disabled during the timed loops, as the live OSC
 loop does. Figures are printed and optionally written as flat JSON; nothing is asserted.
+
+``--baseline REV`` also replays the same states through the OSC of git revision REV
+(``processes/osc`` and ``hw_config/gains/osc.yaml`` extracted with ``git archive`` into a
+temporary folder and imported from there), in repeats interleaved with this tree's so both
+see the same machine load, and prints both side by side with their ratio and the largest
+difference between the two versions' torques.
 """
 
 from __future__ import annotations
@@ -14,6 +20,8 @@ import argparse
 import gc
 import os
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -83,29 +91,161 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     return out
 
 
-def _replay(states: list[tuple[float, np.ndarray, np.ndarray, Any, Any]]
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Time every tick of a fresh controller on the recorded states (ms): wall clock, and
-    this thread's CPU time (which a busy shared machine inflates much less)."""
-    from processes.osc.controller import OscController
+@dataclass
+class Replay:
+    """Per-tick figures of one replay: wall and CPU time (ms), piqp's share (ms), piqp
+    iterations (0: solved in closed form), mode and the torques (N m)."""
 
-    osc = OscController()
+    tick: np.ndarray
+    cpu: np.ndarray
+    solve: np.ndarray
+    iters: np.ndarray
+    mode: np.ndarray
+    u: np.ndarray
+
+
+def _replay(states: list[tuple[float, np.ndarray, np.ndarray, Any, Any]],
+            controller: Callable[[], Any] | None = None) -> Replay:
+    """Time every tick of a fresh controller on the recorded states (ms): wall clock, and
+    this thread's CPU time (which a busy shared machine inflates much less).
+    ``controller`` builds the controller to time (default: this tree's ``OscController``)."""
+    if controller is None:
+        from processes.osc.controller import OscController as controller
+
+    osc = controller()
     n = len(states)
     tick, cpu, solve, iters = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    mode, us = np.zeros(n, dtype=int), np.zeros((n, 10))
     gc.collect()
     gc.disable()
     try:
         for i, (t, q, v, plan, cmd) in enumerate(states):
             c0 = time.thread_time()
             t0 = time.perf_counter()
-            _, dbg = osc.update(t, q, v, plan, cmd)
+            u, dbg = osc.update(t, q, v, plan, cmd)
             tick[i] = (time.perf_counter() - t0) * 1e3
             cpu[i] = (time.thread_time() - c0) * 1e3
             solve[i] = dbg.solve_ms
             iters[i] = dbg.qp_iterations
+            mode[i] = dbg.mode
+            us[i] = u
     finally:
         gc.enable()
-    return tick, cpu, solve, iters
+    return Replay(tick, cpu, solve, iters, mode, us)
+
+
+def baseline_controller(rev: str) -> Callable[[], Any]:
+    """A factory of the ``OscController`` of git revision ``rev``: its ``processes/osc``
+    imported beside this tree's as package ``baseline_osc`` (its imports of ``runtime`` resolve
+    to this tree's), with that revision's ``hw_config/gains/osc.yaml``."""
+    import importlib
+    import io
+    import subprocess
+    import sys
+    import tarfile
+    import tempfile
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    gains = "hw_config/gains/osc.yaml"
+    try:
+        tar = subprocess.run(["git", "-C", str(repo), "archive", rev, "processes/osc", gains],
+                             check=True, capture_output=True).stdout
+    except (OSError, subprocess.CalledProcessError) as exc:
+        err = getattr(exc, "stderr", b"") or b""
+        raise SystemExit(f"--baseline {rev}: cannot read processes/osc at that revision from "
+                         f"git ({err.decode().strip() or exc}); give a commit of this "
+                         "repository") from exc
+    root = Path(tempfile.mkdtemp(prefix="osc-baseline-"))
+    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
+        tf.extractall(root, filter="data")
+    # root/pkg/baseline_osc: the package's parents[2] is root, where its gains file lies
+    (root / "pkg").mkdir()
+    (root / "processes" / "osc").rename(root / "pkg" / "baseline_osc")
+    sys.path.insert(0, str(root / "pkg"))
+    cls = importlib.import_module("baseline_osc.controller").OscController
+    gains_file = root / gains
+    return lambda: cls(gains_file=gains_file)
+
+
+def _stats(a: np.ndarray) -> tuple[float, float, float]:
+    return float(np.median(a)), float(np.percentile(a, 99)), float(a.max())
+
+
+def side_by_side(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, Any]]],
+                 baseline: Callable[[], Any], rev: str, repeats: int = 3) -> dict[str, Any]:
+    """Replay every recording through the baseline and this tree's controller in interleaved
+    repeats (baseline, this, baseline, ...); print and return the figures, the ratios and the
+    torque agreement of the two versions."""
+    from processes.osc.controller import OscController
+
+    out: dict[str, Any] = {"baseline_rev": rev, "side_by_side_repeats": repeats}
+    rows: list[tuple[str, object]] = []
+    for kind, states in runs.items():
+        got: dict[str, list[Replay]] = {"baseline": [], "this": []}
+        for _ in range(repeats):
+            got["baseline"].append(_replay(states, baseline))
+            got["this"].append(_replay(states, OscController))
+        for name, reps in got.items():
+            for what in ("tick", "cpu"):
+                a = np.concatenate([getattr(r, what) for r in reps])
+                med, p99, mx = _stats(a)
+                key = f"{kind}_{name}_{'tick' if what == 'tick' else 'tick_cpu'}"
+                out[f"{key}_median_ms"], out[f"{key}_p99_ms"], out[f"{key}_max_ms"] = med, p99, mx
+            r0 = reps[0]
+            piqp = r0.iters > 0
+            out[f"{kind}_{name}_piqp_ticks"] = int(piqp.sum())
+            out[f"{kind}_{name}_piqp_ratio"] = float(piqp.mean())
+            if piqp.any():  # the whole tick on the ticks that called piqp
+                a = np.concatenate([r.cpu[r.iters > 0] for r in reps])
+                out[f"{kind}_{name}_piqp_tick_cpu_median_ms"] = float(np.median(a))
+                out[f"{kind}_{name}_piqp_tick_cpu_p99_ms"] = float(np.percentile(a, 99))
+            base_piqp = got["baseline"][0].iters > 0
+            if base_piqp.any():  # this tree on the ticks where the baseline needed piqp
+                a = np.concatenate([r.cpu[base_piqp] for r in reps])
+                out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_median_ms"] = float(np.median(a))
+                out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_p99_ms"] = float(
+                    np.percentile(a, 99))
+        for stat in ("median", "p99", "max"):
+            for what in ("tick", "tick_cpu"):
+                b = out[f"{kind}_baseline_{what}_{stat}_ms"]
+                t = out[f"{kind}_this_{what}_{stat}_ms"]
+                out[f"{kind}_{what}_{stat}_speedup_ratio"] = b / t
+        # torque agreement (the replays are deterministic: the first repeat of each suffices)
+        ub, ut = got["baseline"][0], got["this"][0]
+        du = np.abs(ub.u - ut.u).max(axis=1)
+        base_piqp = ub.iters > 0
+        out[f"{kind}_torque_diff_max_nm"] = float(du.max())
+        out[f"{kind}_torque_diff_median_nm"] = float(np.median(du))
+        out[f"{kind}_torque_diff_max_closed_form_ticks_nm"] = float(
+            du[~base_piqp].max()) if (~base_piqp).any() else 0.0
+        out[f"{kind}_torque_diff_max_baseline_piqp_ticks_nm"] = float(
+            du[base_piqp].max()) if base_piqp.any() else 0.0
+        out[f"{kind}_modes_equal"] = bool(np.array_equal(ub.mode, ut.mode))
+        for what, label in (("tick", "wall"), ("tick_cpu", "cpu")):
+            rows.append((f"{kind} {label} median / p99 / max", " -> ".join(
+                " / ".join(f"{out[f'{kind}_{name}_{what}_{s}_ms']:.3f}"
+                           for s in ("median", "p99", "max"))
+                for name in ("baseline", "this")) + "  ({:.2f}x / {:.2f}x / {:.2f}x)".format(
+                *(out[f"{kind}_{what}_{s}_speedup_ratio"] for s in ("median", "p99", "max")))))
+        rows.append((f"{kind} ticks with piqp", "{} -> {}  ({:.1%} -> {:.1%})".format(
+            out[f"{kind}_baseline_piqp_ticks"], out[f"{kind}_this_piqp_ticks"],
+            out[f"{kind}_baseline_piqp_ratio"], out[f"{kind}_this_piqp_ratio"])))
+        if f"{kind}_baseline_on_baseline_piqp_ticks_cpu_median_ms" in out:
+            rows.append((f"{kind} cpu on the baseline's piqp ticks, median / p99", " -> ".join(
+                "{:.3f} / {:.3f}".format(
+                    out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_median_ms"],
+                    out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_p99_ms"])
+                for name in ("baseline", "this"))))
+        rows.append((f"{kind} max |du| all / closed-form / baseline-piqp ticks (N m)",
+                     "{:.2e} / {:.2e} / {:.2e}".format(
+                         out[f"{kind}_torque_diff_max_nm"],
+                         out[f"{kind}_torque_diff_max_closed_form_ticks_nm"],
+                         out[f"{kind}_torque_diff_max_baseline_piqp_ticks_nm"])))
+        rows.append((f"{kind} same mode every tick", out[f"{kind}_modes_equal"]))
+    print_table(f"side by side: baseline {rev} -> this tree (ms, {repeats} interleaved "
+                "repeats; ratio = baseline / this)", rows)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -114,22 +254,30 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, help="write the figures to this JSON file")
     ap.add_argument("--ticks", type=int, default=4000,
                     help="ticks recorded per run (2 kHz: 4000 = 2 s of sim time)")
+    ap.add_argument("--baseline", metavar="REV", default=None,
+                    help="also time the OSC of git revision REV on the same states, "
+                         "interleaved with this tree's, and compare their torques")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="interleaved repeats of each version with --baseline (default 3)")
     args = ap.parse_args(argv)
 
-    figures: dict[str, Any] = {"ticks_per_run": args.ticks, "deadline_ms": DEADLINE_MS}
+    baseline = baseline_controller(args.baseline) if args.baseline else None  # fail early
+    figures: dict[str, Any] = {"ticks_per_run": args.ticks, "deadline_ms": DEADLINE_MS,
+                               "load_average_1min_start": os.getloadavg()[0]}
     all_ticks, all_cpu = [], []
+    runs = {}
     for kind in ("standing", "walking"):
-        states = _record(kind, args.ticks)
-        tick, cpu, solve, iters = _replay(states)
-        all_ticks.append(tick)
-        all_cpu.append(cpu)
-        figures.update(summarize(tick, f"{kind}_tick"))
-        figures.update(summarize(cpu, f"{kind}_tick_cpu"))
-        figures.update(summarize(solve, f"{kind}_solve"))
-        figures[f"{kind}_qp_iterations_median"] = float(np.median(iters))
-        # ticks where the unconstrained minimiser was feasible and piqp was skipped
-        figures[f"{kind}_unconstrained_ratio"] = float(np.mean(iters == 0))
-        figures[f"{kind}_deadline_miss_ratio"] = float(np.mean(tick > DEADLINE_MS))
+        states = runs[kind] = _record(kind, args.ticks)
+        r = _replay(states)
+        all_ticks.append(r.tick)
+        all_cpu.append(r.cpu)
+        figures.update(summarize(r.tick, f"{kind}_tick"))
+        figures.update(summarize(r.cpu, f"{kind}_tick_cpu"))
+        figures.update(summarize(r.solve, f"{kind}_solve"))
+        figures[f"{kind}_qp_iterations_median"] = float(np.median(r.iters))
+        # ticks solved in closed form (piqp skipped)
+        figures[f"{kind}_unconstrained_ratio"] = float(np.mean(r.iters == 0))
+        figures[f"{kind}_deadline_miss_ratio"] = float(np.mean(r.tick > DEADLINE_MS))
         figures[f"{kind}_recorded_s"] = len(states) * 0.0005
     tick = np.concatenate(all_ticks)
     figures.update(summarize(tick, "tick"))
@@ -139,6 +287,11 @@ def main(argv: list[str] | None = None) -> int:
 
     rows = [(k, v) for k, v in figures.items() if not k.endswith("_count")]
     print_table("OSC tick (build + solve), ms", rows)
+    if baseline is not None:
+        figures.update(side_by_side(runs, baseline, args.baseline, args.repeats))
+        figures["load_average_1min_end"] = os.getloadavg()[0]
+        print(f"\nload average (1 min): {figures['load_average_1min_start']:.2f} at the start, "
+              f"{figures['load_average_1min_end']:.2f} at the end")
     write_json(args.json, "osc", figures)
     return 0
 
