@@ -9,6 +9,10 @@ friction pyramid for (14e). piqp has no warm start; the problem is set up once p
 count and only ``update``-d afterwards. When the optimum can be certified in closed form (the
 cost's unconstrained minimiser is feasible, or one active-set step on the constraints it
 violates satisfies the KKT conditions) piqp is skipped (iterations reported as 0).
+
+The condensation (M^-1 through MuJoCo's sparse factor, the holonomic Schur complement, every
+cost row as an affine function of x, the cost's P and c) is one compiled kernel (numba,
+cached on disk): per tick it replaced ~40 numpy/LAPACK calls and one ``mj_solveM``.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import math
 import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import piqp
 from scipy.linalg import lapack
@@ -58,32 +63,75 @@ class QpResult:
     build_s: float
 
 
+#: Sources of task rows (``TaskRows.add_row``): a row is ``c0 * (S[i0] + c1 * S[i1])`` over
+#: the stacked rows S = [J_com (3, world); Jc (12: 3 per contact point, world); unit rows
+#: (one per dof: a joint or floating-base velocity); rows given explicitly with ``add``].
+ROW_COM = 0
+ROW_CONTACT = 3
+ROW_DOF = 15
+
+
 class TaskRows:
     """Stack of task rows ``J dv ~= b`` (``b = ydd_cmd - Jdot v``) with weight ``w`` per row.
 
-    The arrays are views into the QP's own row stack, so tasks write where the QP reads.
-    Tasks append rows with ``add``; ``reset`` is called once per tick.
+    A row's ``J`` is named, not copied: ``add_row`` gives one or two source rows of the model
+    (``ROW_COM``/``ROW_CONTACT``/``ROW_DOF``) and their coefficients, and the QP's compiled
+    condensation reads them there. ``add`` takes explicit rows (any ``J``) as before.
+    ``reset`` is called once per tick.
     """
 
-    def __init__(self, J: np.ndarray, b: np.ndarray, w: np.ndarray) -> None:
-        self.J = J
-        self.b = b
-        self.w = w
+    def __init__(self, nv: int, max_rows: int = 64) -> None:
+        self.nv = nv
+        self.i0 = np.zeros(max_rows, dtype=np.int64)
+        self.i1 = np.full(max_rows, -1, dtype=np.int64)
+        self.c0 = np.zeros(max_rows)
+        self.c1 = np.zeros(max_rows)
+        self.b = np.zeros(max_rows)
+        self.w = np.zeros(max_rows)
+        #: explicit rows given with ``add`` (source ``ROW_DOF + nv + row``)
+        self.dense = np.zeros((max_rows, nv))
         self.n = 0
 
     def reset(self) -> None:
         """Start a new tick with no rows."""
         self.n = 0
 
+    def add_row(self, i0: int, c0: float, b: float, w: float, i1: int = -1,
+                c1: float = 0.0) -> None:
+        """Append the row ``c0 * (S[i0] + c1 * S[i1])`` (``i1 = -1``: ``c0 * S[i0]``) with
+        right-hand side ``b`` and weight ``w``."""
+        i = self.n
+        self.i0[i] = i0
+        self.c0[i] = c0
+        self.i1[i] = i1
+        self.c1[i] = c1
+        self.b[i] = b
+        self.w[i] = w
+        self.n = i + 1
+
     def add(self, J: np.ndarray, Jdot_v: np.ndarray | float, ydd: np.ndarray | float,
             w: np.ndarray | float) -> None:
-        """Append ``len(J)`` rows (a 1-D ``J`` is one row)."""
+        """Append ``len(J)`` explicit rows (a 1-D ``J`` is one row)."""
         k = 1 if J.ndim == 1 else J.shape[0]
         i = self.n
-        self.J[i : i + k] = J
+        self.dense[i : i + k] = J
+        self.i0[i : i + k] = ROW_DOF + self.nv + np.arange(i, i + k)
+        self.c0[i : i + k] = 1.0
+        self.i1[i : i + k] = -1
         np.subtract(ydd, Jdot_v, out=self.b[i : i + k])
         self.w[i : i + k] = w
         self.n = i + k
+
+    def matrix(self, model: CassieModel) -> np.ndarray:
+        """The rows' ``J`` as a dense (n, nv) matrix for the model's current state (tests)."""
+        src = np.vstack([model.J_com, model.Jc, np.eye(self.nv), self.dense])
+        out = np.zeros((self.n, self.nv))
+        for r in range(self.n):
+            row = src[self.i0[r]].copy()
+            if self.i1[r] >= 0:
+                row += self.c1[r] * src[self.i1[r]]
+            out[r] = self.c0[r] * row
+        return out
 
 
 class _Solver:
@@ -240,29 +288,32 @@ class OscQP:
         nh, ncp = model.n_holonomic, model.n_contact_points
         self.nh = nh
         self._solvers: dict[tuple[int, float], _Solver] = {}
-        # rhs rows for M^-1: [Jh (14); B^T (nu); Jc of stance points (<= 12); -h (1)]
-        self._rhs = np.zeros((nh + nu + 3 * ncp + 1, nv))
-        self._rhs[nh : nh + nu] = model.B.T
-        self._Y = np.zeros_like(self._rhs)
-        max_task_rows = 64
-        na = nv if self.wts.accel > 0.0 else 0
-        self._r0 = nh + na  # first task row in the stack
-        mr = self._r0 + max_task_rows + 3 * ncp
-        self._Jall = np.zeros((mr, nv))
-        self._brows = np.zeros(mr)
-        self._wrows = np.zeros(mr)
-        self._Jall[nh : nh + na] = np.eye(nv)[:na]  # ||dv||^2 rows: constant
-        self._wrows[nh : nh + na] = self.wts.accel
-        #: where the tasks write their rows (views into the stack above)
-        self.rows = TaskRows(self._Jall[self._r0 : self._r0 + max_task_rows],
-                             self._brows[self._r0 : self._r0 + max_task_rows],
-                             self._wrows[self._r0 : self._r0 + max_task_rows])
-        self._reg_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        ncp3 = 3 * ncp
+        nmax = nu + ncp3
+        m_max = nv + 64 + ncp3  # cost rows: ||dv||^2, tasks, soft contact
+        self._buf = np.zeros(nv * (2 * nh + nmax + 1 + 15) + nh * (nh + nmax + 1)
+                             + 15 * (nmax + 2) + m_max * (nmax + 1) + 2 * (nmax + 2))
+        #: where the tasks write their rows
+        self.rows = TaskRows(nv, 64)
+        # per variable count n: P (n, n), S (nh, n + 2), G (nv, n + 2)
+        self._Pbuf = {n: np.zeros((n, n)) for n in range(nu, nmax + 1, 3)}
+        self._Sbuf = {n: np.zeros((nh, n + 2)) for n in self._Pbuf}
+        self._Gbuf = {n: np.zeros((nv, n + 2)) for n in self._Pbuf}
+        self._c = np.zeros(nmax)
+        w = self.wts
+        #: [accel, contact_slack, u reg, lambda reg, u change, lambda change, moment weight]
+        self._wts = np.array([w.accel, w.contact_slack, w.torque + w.torque_change,
+                              w.force + w.force_change, w.torque_change, w.force_change, 0.0])
         self._x: np.ndarray | None = None
-        self._S = np.zeros((nh, 1))
-        self._R = np.zeros((nh, nu + 3 * ncp + 2))
-        self._xs = np.zeros(nu + 3 * ncp + 2)
+        self._xs = np.zeros(nmax + 2)
         self._row_cache: dict[bytes, np.ndarray] = {}
+        mdl = model.m
+        self._M_rownnz = np.ascontiguousarray(mdl.M_rownnz, dtype=np.int64)
+        self._M_rowadr = np.ascontiguousarray(mdl.M_rowadr, dtype=np.int64)
+        self._M_colind = np.ascontiguousarray(mdl.M_colind, dtype=np.int64)
+        self._motor_dof = np.ascontiguousarray(model.motor_dof, dtype=np.int64)
+        self._qLD = model.d.qLD
+        self._qLDiagInv = model.d.qLDiagInv
         self._fz_default = np.full(ncp, self.wts.fz_max)
         self.u_prev = np.zeros(nu)
         self.lam_prev = np.zeros(3 * ncp)  # per contact point, kept across contact changes
@@ -278,6 +329,8 @@ class OscQP:
         self.moment_count = 0
         self.moment_weight = 0.0
         self.last_status = 0
+        # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
+        self._build(self.rows, self._rows_of(np.ones(ncp, dtype=bool)))
 
     def solve(self, tasks: TaskRows, stance: np.ndarray, fz_min: float = 0.0,
               fz_max: np.ndarray | None = None) -> QpResult:
@@ -291,70 +344,11 @@ class OscQP:
         """
         t0 = time.perf_counter()
         m = self.model
-        nu, nh = self.nu, self.nh
+        nu = self.nu
         rows = self._rows_of(stance)
         nc = len(rows) // 3
         n = nu + 3 * nc
-        Jc = m.Jc[rows]
-
-        # M^-1 applied to every generalized-force direction at once (one factorization):
-        # Y rows = (M^-1 [Jh^T, B, Jc^T, -h])^T.
-        k = nh + nu + 3 * nc + 1
-        rhs = self._rhs[:k]
-        rhs[:nh] = m.Jh
-        rhs[nh + nu : k - 1] = Jc
-        np.negative(m.h, out=rhs[k - 1])
-        Y = self._Y[:k]
-        m.solve_M(Y, rhs)
-
-        # Every row of the cost, stacked: [Jh; I (||dv||^2, constant); tasks; stance Jc (14d)]
-        # (the task rows were written in place by the tasks through self.rows).
-        r0 = self._r0
-        nt = tasks.n
-        end = r0 + nt + 3 * nc
-        J = self._Jall[:end]
-        J[:nh] = m.Jh
-        J[r0 + nt : end] = Jc
-        b = self._brows[nh:end]
-        w = self._wrows[nh:end]
-        np.negative(m.Jc_dot_v[rows], out=self._brows[r0 + nt : end])
-        self._wrows[r0 + nt : end] = self.wts.contact_slack
-        W = J @ Y.T  # (end, k): one product gives Lam, Jh M^-1 F and every cost row
-        # (14c) eliminates lambda_h:  Lam lambda_h = bh - Jh M^-1 f,  Lam = Jh M^-1 Jh^T
-        Rh = self._R[:, : k - nh + 1]
-        np.negative(W[:nh, nh:], out=Rh[:, : k - nh])
-        np.negative(m.Jh_dot_v, out=Rh[:, k - nh])  # bh of (14c)
-        cf, info = _potrf(W[:nh, :nh], lower=0, overwrite_a=0, clean=0)
-        if info != 0:
-            raise np.linalg.LinAlgError("holonomic Gram matrix not positive definite")
-        S, _ = _potrs(cf, Rh, lower=0)  # lambda_h = S [x; 1; 1]
-        # the cost rows as affine functions of x: A dv = W[:, nh:] + W[:, :nh] S
-        AG = W[nh:, :nh] @ S
-        AG[:, : n + 1] += W[nh:, nh:]
-        resid0 = AG[:, n]
-        resid0 += AG[:, n + 1]
-        resid0 -= b
-        sw = np.sqrt(w)
-        AGw = AG[:, :n] * sw[:, None]
-        resid0 *= sw
-        P = AGw.T @ AGw
-        c = AGw.T @ resid0
-        self._S = S
-        self._x_rows = rows
-        # torque / force magnitudes and their change from the previous tick (diagonal terms)
-        reg, diag = self._reg_of(n)
-        P.flat[diag] += reg
-        wdt, wdf = self.wts.torque_change, self.wts.force_change
-        c[:nu] -= wdt * self.u_prev
-        c[nu:] -= wdf * self.lam_prev[rows]
-        k = self.moment_count
-        if k and self.moment_weight > 0.0:
-            # moments of the contact forces (the ALIP's u of (1) about its contact point)
-            A = self.moment_rows[:k, rows]
-            wA = self.moment_weight * A
-            P[nu:, nu:] += A.T @ wA
-            c[nu:] -= wA.T @ self.moment_target[:k]
-
+        P, c = self._build(tasks, rows)
         solver = self._solvers.get((nc, fz_min))
         if solver is None:
             solver = _Solver(n, nc, m.u_max, self.wts.mu, self.wts.fz_max, fz_min)
@@ -379,30 +373,37 @@ class OscQP:
             self._x = None
         return QpResult(self.u, self.lam, self.dv, status, iters, t2 - t1, t1 - t0)
 
+    def _build(self, tasks: TaskRows, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The condensed (14) for the stance rows ``rows``: its (P, c), from the compiled
+        kernel (buffers reused from tick to tick)."""
+        m = self.model
+        n = self.nu + len(rows)
+        P = self._Pbuf[n]
+        c = self._c[:n]
+        wts = self._wts
+        k = self.moment_count
+        wts[6] = self.moment_weight if k else 0.0
+        info = _condense(m.Jh, m.Jh_dot_v, m.h, m.Jc, m.Jc_dot_v, m.J_com, self._qLD,
+                         self._qLDiagInv, self._M_rownnz, self._M_rowadr, self._M_colind,
+                         self._motor_dof, rows, tasks.n, tasks.i0, tasks.c0, tasks.i1, tasks.c1,
+                         tasks.b, tasks.w, tasks.dense, wts, self.u_prev, self.lam_prev,
+                         self.moment_rows, self.moment_target, k, self._buf, self._Sbuf[n],
+                         self._Gbuf[n], P, c)
+        if info != 0:
+            raise np.linalg.LinAlgError("holonomic Gram matrix not positive definite")
+        return P, c
+
     def recover(self) -> None:
         """Fill ``dv`` (14b) and ``lam_h`` (14c) for the last solution (tests, debugging)."""
         if self._x is None:
             return
-        x, nh = self._x, self.nh
+        x = self._x
         n = len(x)
         xs = self._xs[: n + 2]
         xs[:n] = x
         xs[n:] = 1.0
-        np.dot(self._S, xs, out=self.lam_h)
-        Y = self._Y[: nh + n + 1]
-        np.dot(Y[nh:].T, xs[: n + 1], out=self.dv)
-        self.dv += Y[:nh].T @ self.lam_h
-
-    def _reg_of(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """Diagonal regularisation of (14a) and the flat diagonal indices, for n variables."""
-        r = self._reg_cache.get(n)
-        if r is None:
-            reg = np.empty(n)
-            reg[: self.nu] = self.wts.torque + self.wts.torque_change
-            reg[self.nu :] = self.wts.force + self.wts.force_change
-            r = (reg, np.arange(n) * (n + 1))
-            self._reg_cache[n] = r
-        return r
+        np.dot(self._Sbuf[n], xs, out=self.lam_h)  # lambda_h = S [x; 1; 1]
+        np.dot(self._Gbuf[n], xs, out=self.dv)  # dv = G [x; 1; 1]
 
     def _rows_of(self, stance: np.ndarray) -> np.ndarray:
         """Force/Jacobian row indices of the stance points (cached per mask)."""
@@ -413,3 +414,217 @@ class OscQP:
             r = (3 * idx[:, None] + np.arange(3)).reshape(-1)
             self._row_cache[key] = r
         return r
+
+
+# ---------------------------------------------------------------------- compiled kernels
+_jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def _solve_ld(X: np.ndarray, k: int, qLD: np.ndarray, qLDiagInv: np.ndarray,
+              rownnz: np.ndarray, rowadr: np.ndarray, colind: np.ndarray) -> None:
+    """``X[:, :k] <- M^-1 X[:, :k]`` for k right-hand sides stored as columns (nv, k), with
+    MuJoCo's sparse factor M = L' D L (CSR rows; mj_solveLD of engine_core_smooth.c):
+    x <- L^-T x, x <- D^-1 x, x <- L^-1 x, each sparse update done on all k columns at once."""
+    nv = X.shape[0]
+    for i in range(nv - 1, -1, -1):
+        start = rowadr[i]
+        for adr in range(start, start + rownnz[i] - 1):
+            lij = qLD[adr]
+            j = colind[adr]
+            for r in range(k):
+                X[j, r] -= lij * X[i, r]
+    for i in range(nv):
+        d = qLDiagInv[i]
+        for r in range(k):
+            X[i, r] *= d
+    for i in range(nv):
+        start = rowadr[i]
+        for adr in range(start, start + rownnz[i] - 1):
+            lij = qLD[adr]
+            j = colind[adr]
+            for r in range(k):
+                X[i, r] -= lij * X[j, r]
+
+
+@_jit
+def _cholesky_solve(A: np.ndarray, B: np.ndarray, nb: int) -> int:
+    """Solve ``A X = B[:, :nb]`` in place (X into B) for symmetric positive definite A (its
+    upper triangle is read and overwritten by the factor U, A = U'U). 0, or 1 if not PD."""
+    n = A.shape[0]
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= A[k, j] * A[k, j]
+        if not d > 0.0:
+            return 1
+        d = math.sqrt(d)
+        A[j, j] = d
+        for i in range(j + 1, n):
+            s = A[j, i]
+            for k in range(j):
+                s -= A[k, j] * A[k, i]
+            A[j, i] = s / d
+    # U' Y = B, then U X = Y, a row of B (all nb columns) at a time
+    for i in range(n):
+        for k in range(i):
+            u = A[k, i]
+            for col in range(nb):
+                B[i, col] -= u * B[k, col]
+        d = A[i, i]
+        for col in range(nb):
+            B[i, col] /= d
+    for i in range(n - 1, -1, -1):
+        for k in range(i + 1, n):
+            u = A[i, k]
+            for col in range(nb):
+                B[i, col] -= u * B[k, col]
+        d = A[i, i]
+        for col in range(nb):
+            B[i, col] /= d
+    return 0
+
+
+@_jit
+def _condense(Jh: np.ndarray, Jh_dot_v: np.ndarray, h: np.ndarray, Jc: np.ndarray,
+              Jc_dot_v: np.ndarray, J_com: np.ndarray, qLD: np.ndarray, qLDiagInv: np.ndarray,
+              rownnz: np.ndarray, rowadr: np.ndarray, colind: np.ndarray, motor_dof: np.ndarray,
+              rows: np.ndarray, nt: int, ti0: np.ndarray, tc0: np.ndarray, ti1: np.ndarray,
+              tc1: np.ndarray, tb: np.ndarray, tw: np.ndarray, tdense: np.ndarray,
+              wts: np.ndarray, u_prev: np.ndarray, lam_prev: np.ndarray,
+              moment_rows: np.ndarray, moment_target: np.ndarray, nmom: int, buf: np.ndarray,
+              S: np.ndarray, G: np.ndarray, P: np.ndarray, c: np.ndarray) -> int:
+    """The condensed QP (14) over x = [u, lambda_c of the stance rows]: ``P`` and ``c`` of
+    min 1/2 x'Px + c'x, with ``S`` (lambda_h = S [x; 1; 1], (nh, n + 2)) and ``G``
+    (dv = G [x; 1; 1], (nv, n + 2)), both C-contiguous. ``buf`` is flat scratch. Products
+    go through BLAS (numba's np.dot), the rest is plain loops. Returns 0, or 1 when the
+    holonomic Gram matrix Jh M^-1 Jh' is not positive definite."""
+    nh, nv = Jh.shape
+    nu = motor_dof.size
+    n3 = rows.size
+    n = nu + n3
+    nf = n + 1  # generalized-force directions besides Jh': B (nu), Jc' (n3), -h (1)
+    na = nv if wts[0] > 0.0 else 0
+    m = na + nt + n3  # cost rows (14a): ||dv||^2, tasks, soft contact (14d)
+    o = 0
+    Yh = buf[o : o + nv * nh].reshape((nv, nh))
+    o += nv * nh
+    YF = buf[o : o + nv * nf].reshape((nv, nf))
+    o += nv * nf
+    Lam = buf[o : o + nh * nh].reshape((nh, nh))
+    o += nh * nh
+    WF = buf[o : o + nh * nf].reshape((nh, nf))
+    o += nh * nf
+    src = buf[o : o + 15 * nv].reshape((15, nv))
+    o += 15 * nv
+    SG = buf[o : o + 15 * (n + 2)].reshape((15, n + 2))
+    o += 15 * (n + 2)
+    Aw = buf[o : o + m * n].reshape((m, n))
+    o += m * n
+    rw = buf[o : o + m]
+    o += m
+    row = buf[o : o + n + 2]
+    o += n + 2
+    tmp = buf[o : o + n + 2]
+    # (13)/(14b): M dv = Jh' lambda_h + [B, Jc', -h] [x; 1]: Yh = M^-1 Jh', YF = M^-1 [B Jc' -h]
+    for i in range(nv):
+        for r in range(nh):
+            Yh[i, r] = Jh[r, i]
+        for j in range(nf):
+            YF[i, j] = 0.0
+        for r in range(n3):
+            YF[i, nu + r] = Jc[rows[r], i]
+        YF[i, nf - 1] = -h[i]
+    for a in range(nu):
+        YF[motor_dof[a], a] = 1.0
+    _solve_ld(Yh, nh, qLD, qLDiagInv, rownnz, rowadr, colind)
+    _solve_ld(YF, nf, qLD, qLDiagInv, rownnz, rowadr, colind)
+    # (14c) eliminates lambda_h: Lam lambda_h = -Jh M^-1 [B, Jc', -h] [x; 1] - Jdot_h v with
+    # Lam = Jh M^-1 Jh': S = Lam^-1 [-Jh YF, -Jdot_h v]
+    np.dot(Jh, Yh, Lam)
+    np.dot(Jh, YF, WF)
+    for r in range(nh):
+        for j in range(nf):
+            S[r, j] = -WF[r, j]
+        S[r, nf] = -Jh_dot_v[r]
+    if _cholesky_solve(Lam, S, n + 2) != 0:
+        return 1
+    # dv = G [x; 1; 1], G = Yh S + [YF, 0]
+    np.dot(Yh, S, G)
+    for i in range(nv):
+        for j in range(nf):
+            G[i, j] += YF[i, j]
+    # the model's source rows as affine functions of x: SG = [J_com; Jc] G
+    for i in range(nv):
+        for a in range(3):
+            src[a, i] = J_com[a, i]
+        for r in range(12):
+            src[3 + r, i] = Jc[r, i]
+    np.dot(src, G, SG)
+    # the cost (14a): rows sqrt(w) (a x + a0 - b) stacked into (Aw, rw)
+    if na > 0:
+        sw = math.sqrt(wts[0])
+        for i in range(nv):
+            for j in range(n):
+                Aw[i, j] = sw * G[i, j]
+            rw[i] = sw * (G[i, n] + G[i, n + 1])
+    nsrc = 15 + nv
+    for t in range(nt):  # task rows c0 (S[i0] + c1 S[i1])
+        for q in range(2):
+            idx = ti0[t] if q == 0 else ti1[t]
+            dst = row if q == 0 else tmp
+            if idx < 0:
+                continue
+            if idx < 15:
+                for j in range(n + 2):
+                    dst[j] = SG[idx, j]
+            elif idx < nsrc:
+                for j in range(n + 2):
+                    dst[j] = G[idx - 15, j]
+            else:
+                dr = tdense[idx - nsrc]
+                for j in range(n + 2):
+                    dst[j] = 0.0
+                for i in range(nv):
+                    if dr[i] != 0.0:
+                        for j in range(n + 2):
+                            dst[j] += dr[i] * G[i, j]
+        if ti1[t] >= 0:
+            for j in range(n + 2):
+                row[j] = tc0[t] * (row[j] + tc1[t] * tmp[j])
+        else:
+            for j in range(n + 2):
+                row[j] = tc0[t] * row[j]
+        sw = math.sqrt(tw[t])
+        for j in range(n):
+            Aw[na + t, j] = sw * row[j]
+        rw[na + t] = sw * (row[n] + row[n + 1] - tb[t])
+    sw = math.sqrt(wts[1])
+    for r in range(n3):  # soft contact (14d): Jc dv + Jdot_c v = eps
+        a = SG[3 + rows[r]]
+        for j in range(n):
+            Aw[na + nt + r, j] = sw * a[j]
+        rw[na + nt + r] = sw * (a[n] + a[n + 1] + Jc_dot_v[rows[r]])
+    np.dot(Aw.T, Aw, P)
+    np.dot(Aw.T, rw, c)
+    # torque / force magnitudes and their change from the previous tick (diagonal terms)
+    for i in range(n):
+        P[i, i] += wts[2] if i < nu else wts[3]
+    for i in range(nu):
+        c[i] -= wts[4] * u_prev[i]
+    for r in range(n3):
+        c[nu + r] -= wts[5] * lam_prev[rows[r]]
+    # moments of the contact forces (the ALIP's u of (1) about its contact point)
+    if nmom > 0 and wts[6] > 0.0:
+        for q in range(nmom):
+            for r in range(n3):
+                a = moment_rows[q, rows[r]]
+                if a != 0.0:
+                    wa = wts[6] * a
+                    c[nu + r] -= wa * moment_target[q]
+                    for r2 in range(n3):
+                        P[nu + r, nu + r2] += wa * moment_rows[q, rows[r2]]
+    for i in range(n):  # exactly symmetric
+        for j in range(i):
+            P[i, j] = P[j, i]
+    return 0

@@ -18,7 +18,7 @@ import yaml
 from runtime.errors import ConfigError
 
 from .model import CassieModel
-from .qp import QpWeights, TaskRows
+from .qp import ROW_COM, ROW_CONTACT, ROW_DOF, QpWeights, TaskRows
 
 DEFAULT_GAINS_FILE = Path(__file__).resolve().parents[2] / "hw_config" / "gains" / "osc.yaml"
 
@@ -296,7 +296,6 @@ class PelvisOrientationTask:
     def __init__(self, nv: int) -> None:
         self.J = np.zeros((3, nv))
         self.J[0, 3] = self.J[1, 4] = self.J[2, 5] = 1.0
-        self._ydd = np.zeros(3)
 
     def add(self, rows: TaskRows, log: TaskLog, m: CassieModel, v: np.ndarray, gains: Gains,
             yaw_des: float, yaw_rate_des: float) -> None:
@@ -307,12 +306,12 @@ class PelvisOrientationTask:
              for i in range(3)]
         e = rot_log_list(E)
         w = v[3:6].tolist()
-        kp, kd = gains.kp_list, gains.kd_list
-        ydd = self._ydd
+        kp, kd, wt = gains.kp_list, gains.kd_list, gains.w_list
         for a in range(3):
-            # desired body rate: the world z rate expressed in the body frame (R^T e_z)
-            ydd[a] = kp[a] * e[a] + kd[a] * (R[2][a] * yaw_rate_des - w[a])
-        rows.add(self.J, 0.0, ydd, gains.w)
+            # desired body rate: the world z rate expressed in the body frame (R^T e_z);
+            # J selects the body-frame angular velocity dv[3 + a], Jdot v = 0
+            ydd = kp[a] * e[a] + kd[a] * (R[2][a] * yaw_rate_des - w[a])
+            rows.add_row(ROW_DOF + 3 + a, 1.0, ydd, wt[a])
         log.add("pelvis_rpy", *e)
 
 
@@ -326,23 +325,23 @@ def add_com_task(rows: TaskRows, log: TaskLog, m: CassieModel, gains: Gains,
         e = pos_des[a] - c[a]
         errs.append(e)
         ydd = acc_des[a] + gains.kp_list[a] * e + gains.kd_list[a] * (vel_des[a] - cv[a])
-        rows.add(m.J_com[a], cd[a], ydd, gains.w_list[a])
+        rows.add_row(ROW_COM + a, 1.0, ydd - cd[a], gains.w_list[a])  # J_com[a], Jdot v
     log.add(name, *errs)
 
 
 def add_foot_position_task(rows: TaskRows, log: TaskLog, m: CassieModel, side: int, gains: Gains,
                            pos: list[float], vel: list[float], acc: list[float]) -> None:
     """Swing-foot position (midpoint of the blade's two contact points, world frame)."""
-    i = rows.n
-    np.dot(m.foot_avg[side], m.Jc, out=rows.J[i : i + 3])  # J of the midpoint
     f, r = m.p_contact_l[2 * side], m.p_contact_l[2 * side + 1]
     fv, rv = m.v_contact_l[2 * side], m.v_contact_l[2 * side + 1]
     jd = m.Jc_dot_v_l[6 * side : 6 * side + 6]
-    kp, kd = gains.kp_list, gains.kd_list
+    kp, kd, w = gains.kp_list, gains.kd_list, gains.w_list
     e = [pos[a] - 0.5 * (f[a] + r[a]) for a in range(3)]
-    b = [acc[a] + kp[a] * e[a] + kd[a] * (vel[a] - 0.5 * (fv[a] + rv[a]))
-         - 0.5 * (jd[a] + jd[a + 3]) for a in range(3)]
-    rows.add(rows.J[i : i + 3], 0.0, b, gains.w)
+    j0 = ROW_CONTACT + 6 * side  # front point's rows; the rear point's follow
+    for a in range(3):
+        b = (acc[a] + kp[a] * e[a] + kd[a] * (vel[a] - 0.5 * (fv[a] + rv[a]))
+             - 0.5 * (jd[a] + jd[a + 3]))
+        rows.add_row(j0 + a, 0.5, b, w[a], j0 + 3 + a, 1.0)  # J of the midpoint
     log.add("swing_foot", *e)
 
 
@@ -358,24 +357,20 @@ def add_foot_pitch_task(rows: TaskRows, log: TaskLog, m: CassieModel, side: int,
     f, r = m.p_contact_l[2 * side], m.p_contact_l[2 * side + 1]
     L = math.sqrt((f[0] - r[0]) ** 2 + (f[1] - r[1]) ** 2 + (f[2] - r[2]) ** 2)
     scale = 1.0 / (L * max(math.cos(pitch), 0.2))
-    row = rows.J[rows.n]
-    np.subtract(m.Jc[i + 2], m.Jc[i + 5], out=row)
-    row *= scale
     jdv = (m.Jc_dot_v_l[i + 2] - m.Jc_dot_v_l[i + 5]) * scale
     rate = (m.v_contact_l[2 * side][2] - m.v_contact_l[2 * side + 1][2]) * scale
     e = pitch_des - pitch
     ydd = gains.kp_list[0] * e - gains.kd_list[0] * rate
-    rows.add(row, jdv, ydd, gains.w_list[0])
+    # J = (Jz_front - Jz_rear) * scale
+    rows.add_row(ROW_CONTACT + i + 2, scale, ydd - jdv, gains.w_list[0], ROW_CONTACT + i + 5,
+                 -1.0)
     log.add(name, e)
 
 
 def add_joint_task(rows: TaskRows, log: TaskLog, m: CassieModel, q: np.ndarray, v: np.ndarray,
                    qpos: int, dof: int, gains: Gains, q_des: float, name: str) -> None:
     """One joint angle (hip yaw): a selector row, Jdot v = 0."""
-    row = rows.J[rows.n]
-    row[:] = 0.0
-    row[dof] = 1.0
     e = q_des - float(q[qpos])
     ydd = gains.kp_list[0] * e - gains.kd_list[0] * float(v[dof])
-    rows.add(row, 0.0, ydd, gains.w_list[0])
+    rows.add_row(ROW_DOF + dof, 1.0, ydd, gains.w_list[0])
     log.add(name, e)

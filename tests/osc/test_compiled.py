@@ -83,3 +83,83 @@ def test_compiled_kinematics_match_mujoco_jacobians(sim_model, q_stand):
             assert np.abs(got - a).max() <= 1e-12 * scale, name
         # the float lists the tasks read are the arrays' values
         assert cm.com_l == cm.com.tolist() and cm.p_contact_l == cm.p_contact.tolist()
+
+
+def _reference_qp(cm: CassieModel, qp, tasks, stance: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(P, c) of (14) condensed by dense algebra: the KKT system of (14b)-(14c) solved for the
+    affine map x -> dv, then the Hessian and gradient of the cost (14a) written term by term:
+    1/2 sum w (J dv - b)^2 over ||dv||^2, task and soft-contact rows, 1/2 w_u ||u||^2,
+    1/2 w_f ||lam||^2, the change penalties and the contact-moment cost."""
+    nv, nu, nh = cm.nv, cm.nu, cm.n_holonomic
+    wt = qp.wts
+    rows = np.flatnonzero(np.repeat(stance, 3))
+    n = nu + len(rows)
+    M = np.zeros((nv, nv))
+    mujoco.mj_fullM(cm.m, cm.d, M)
+    K = np.block([[M, -cm.Jh.T], [cm.Jh, np.zeros((nh, nh))]])
+    F = np.hstack([cm.B, cm.Jc[rows].T])  # generalized forces of x
+    rhs = np.zeros((nv + nh, n + 1))
+    rhs[:nv, :n] = F
+    rhs[:nv, n] = -cm.h
+    rhs[nv:, n] = -cm.Jh_dot_v
+    sol = np.linalg.solve(K, rhs)
+    Gd, gd = sol[:nv, :n], sol[:nv, n]  # dv = Gd x + gd
+    J = [np.eye(nv), tasks.matrix(cm), cm.Jc[rows]]
+    b = [np.zeros(nv), tasks.b[: tasks.n], -cm.Jc_dot_v[rows]]
+    w = [np.full(nv, wt.accel), tasks.w[: tasks.n], np.full(len(rows), wt.contact_slack)]
+    P, c = np.zeros((n, n)), np.zeros(n)
+    for Jr, br, wr in zip(J, b, w, strict=True):
+        A = Jr @ Gd
+        r = Jr @ gd - br
+        P += A.T @ (wr[:, None] * A)
+        c += A.T @ (wr * r)
+    reg = np.r_[np.full(nu, wt.torque + wt.torque_change),
+                np.full(len(rows), wt.force + wt.force_change)]
+    P += np.diag(reg)
+    c[:nu] -= wt.torque_change * qp.u_prev
+    c[nu:] -= wt.force_change * qp.lam_prev[rows]
+    k = qp.moment_count
+    if k:
+        A = qp.moment_rows[:k, rows]
+        P[nu:, nu:] += qp.moment_weight * A.T @ A
+        c[nu:] -= qp.moment_weight * A.T @ qp.moment_target[:k]
+    return P, c
+
+
+def _tasks_of_every_kind(qp, cm: CassieModel, rng: np.random.Generator) -> None:
+    from processes.osc.qp import ROW_COM, ROW_CONTACT, ROW_DOF
+
+    rows = qp.rows
+    rows.reset()
+    rows.add_row(ROW_COM + 2, 1.0, 0.3, 2.0)
+    rows.add_row(ROW_CONTACT + 7, 0.5, -1.0, 3.0, ROW_CONTACT + 10, 1.0)  # a midpoint
+    rows.add_row(ROW_CONTACT + 2, 7.0, 0.2, 1.5, ROW_CONTACT + 5, -1.0)  # a pitch row
+    rows.add_row(ROW_DOF + 4, 1.0, -0.7, 0.8)
+    rows.add(rng.normal(size=(2, cm.nv)), rng.normal(size=2), rng.normal(size=2), 0.5)
+
+
+def test_compiled_condensation_matches_dense_reference(sim_model, q_stand):
+    """Every weight ~1 so that no term of (14a) is negligible: a dropped term fails this."""
+    from processes.osc.qp import OscQP, QpWeights
+
+    w = QpWeights(contact_slack=3.0, torque=0.7, force=0.4, accel=0.9, torque_change=0.6,
+                  force_change=0.5)
+    cm = CassieModel(sim_model)
+    qp = OscQP(cm, w)
+    rng = np.random.default_rng(5)
+    for i, (q, v) in enumerate(_states(q_stand, 3)):
+        cm.update(q, v)
+        _tasks_of_every_kind(qp, cm, rng)
+        qp.u_prev[:] = rng.normal(size=cm.nu)
+        qp.lam_prev[:] = rng.normal(size=12)
+        qp.moment_count = i % 3
+        qp.moment_rows[:] = rng.normal(size=qp.moment_rows.shape)
+        qp.moment_target[:] = rng.normal(size=2)
+        qp.moment_weight = 1.3
+        for stance in (np.ones(4, dtype=bool), np.array([True, True, False, False])):
+            P, c = qp._build(qp.rows, qp._rows_of(stance))
+            P_ref, c_ref = _reference_qp(cm, qp, qp.rows, stance)
+            assert np.abs(P - P_ref).max() <= 1e-9 * np.abs(P_ref).max()
+            assert np.abs(c - c_ref).max() <= 1e-9 * np.abs(c_ref).max()
+            assert np.array_equal(P, P.T)
