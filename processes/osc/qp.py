@@ -6,9 +6,9 @@ decision vector ``x = [u (10), lambda_c (3 per stance point)]``; the soft contac
 (14d) becomes a weighted residual (its slack ``eps`` is that residual). What is left is a QP
 with at most 22 variables: box bounds for (14f) and the normal-force sign, and a linearised
 friction pyramid for (14e). piqp has no warm start; the problem is set up once per contact
-count and only ``update``-d afterwards. When the optimum can be certified in closed form (the
-cost's unconstrained minimiser is feasible, or one active-set step on the constraints it
-violates satisfies the KKT conditions) piqp is skipped (iterations reported as 0).
+count and only ``update``-d afterwards. It is the last resort: first a compiled dual
+active-set method (``activeset``) finds the exact optimum, accepted only when it satisfies
+the KKT conditions of the whole QP; then piqp is skipped (iterations reported as 0).
 
 The condensation (M^-1 through MuJoCo's sparse factor, the holonomic Schur complement, every
 cost row as an affine function of x, the cost's P and c) is one compiled kernel (numba,
@@ -24,12 +24,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 import piqp
-from scipy.linalg import lapack
 
+from .activeset import solve_dual_active_set
 from .model import CassieModel
-
-_potrf = lapack.dpotrf
-_potrs = lapack.dpotrs
 
 
 @dataclass
@@ -171,11 +168,21 @@ class _Solver:
                 self.x_l[nu + 3 * i + a] = -mu * fz_max
                 self.x_u[nu + 3 * i + a] = mu * fz_max
         self.ready = False
-        self._no_lam = np.zeros(0)
         self.fz_max = fz_max
         self._bounds_changed = False
         self._caps_default = True  # x_u holds fz_max on every point
         self._fz_idx = nu + 2 + 3 * np.arange(nc)
+        # the compiled active-set solver's constraint rows and scratch
+        self._Gc = np.ascontiguousarray(self.G)
+        ncon = 2 * n + 4 * nc
+        self._x = np.zeros(n)
+        self._lam = np.zeros(n)
+        self._iwork = np.zeros(n + ncon, dtype=np.int64)
+        self._work = np.zeros((4 * n + 7, n))
+        self._viol = np.zeros(ncon)
+        self.max_steps = 100
+        self.steps = 0  # active-set steps and active constraints of the last closed_form
+        self.n_active = 0
 
     def set_fz_max(self, caps: np.ndarray) -> None:
         """Per-point upper bounds on the normal force (N) for the next solves (one per stance
@@ -190,70 +197,21 @@ class _Solver:
             self._bounds_changed = True
         self._caps_default = bool(default)
 
-    def closed_form(self, P: np.ndarray, c: np.ndarray, max_steps: int = 4
-                    ) -> np.ndarray | None:
-        """The QP's optimum without piqp when it can be certified, else None.
+    def closed_form(self, P: np.ndarray, c: np.ndarray) -> np.ndarray | None:
+        """The QP's exact optimum without piqp when it can be certified, else None.
 
-        First the minimiser of the cost alone: if it satisfies every constraint it is the
-        optimum (the problem is convex). Otherwise a few active-set steps: the violated
-        constraints join a working set imposed as equalities (KKT system through the
-        Cholesky factor of P and a small Schur complement), a constraint whose multiplier
-        turns negative leaves it. A point that is feasible with every multiplier >= 0
-        satisfies the KKT conditions of the full QP, so it is the optimum; if none is found
-        within ``max_steps``, piqp decides.
+        The compiled dual active-set method (``activeset.solve_dual_active_set``): from the
+        cost's unconstrained minimiser, the most violated constraint joins the active set
+        until none is violated, a constraint whose multiplier would turn negative leaving
+        it. The point is returned only when it satisfies the KKT conditions of the full QP
+        (feasible within 1e-9, multipliers >= 0, stationary to rounding), so it is the
+        optimum; otherwise (never seen on the OSC's QPs) piqp decides.
         """
-        cf, info = _potrf(P, lower=0, overwrite_a=0, clean=0)
-        if info != 0:
-            return None
-        x0, _ = _potrs(cf, c, lower=0)
-        x0 = -x0
-        x = x0
-        work: list[int] = []  # constraint ids: i < n lower bound i, n <= i < 2n upper, else G
-        lam = self._no_lam
-        tol = 1e-9
-        for step in range(max_steps + 1):
-            viol = self._violated(x, tol)
-            if viol:
-                work.extend(v for v in viol if v not in work)
-            elif lam.size and float(lam.min()) < -tol:
-                work.pop(int(np.argmin(lam)))
-            else:
-                return x  # feasible, multipliers >= 0: the KKT point of the full QP
-            if not work or len(work) > self.n // 2 or step == max_steps:
-                return None
-            A, b = self._rows(work)
-            PiAT, _ = _potrs(cf, A.T.copy(), lower=0)  # P^-1 A^T
-            try:
-                lam = np.linalg.solve(A @ PiAT, A @ x0 - b)
-            except np.linalg.LinAlgError:
-                return None
-            x = x0 - PiAT @ lam
-        return None
-
-    def _violated(self, x: np.ndarray, tol: float) -> list[int]:
-        """Ids of the constraints x violates (see ``closed_form`` for the numbering)."""
-        n = self.n
-        out = np.flatnonzero(x < self.x_l - tol).tolist()
-        out += (np.flatnonzero(x > self.x_u + tol) + n).tolist()
-        if self.G.shape[0]:
-            out += (np.flatnonzero(self.G @ x > tol) + 2 * n).tolist()
-        return out
-
-    def _rows(self, work: list[int]) -> tuple[np.ndarray, np.ndarray]:
-        """The working set as rows a_j x <= b_j."""
-        n = self.n
-        A = np.zeros((len(work), n))
-        b = np.zeros(len(work))
-        for r, j in enumerate(work):
-            if j < n:
-                A[r, j] = -1.0
-                b[r] = -self.x_l[j]
-            elif j < 2 * n:
-                A[r, j - n] = 1.0
-                b[r] = self.x_u[j - n]
-            else:
-                A[r] = self.G[j - 2 * n]
-        return A, b
+        status, steps, nact = solve_dual_active_set(
+            P, c, self.x_l, self.x_u, self._Gc, self.h_u, self._x, self._lam, self._iwork,
+            self._work, self._viol, 1e-9, self.max_steps)
+        self.steps, self.n_active = steps, nact
+        return self._x if status == 1 else None
 
     def solve(self, P: np.ndarray, c: np.ndarray) -> tuple[int, int, np.ndarray]:
         """piqp on min 1/2 x'Px + c'x with the bounds and pyramid rows: (status, iters, x)."""
@@ -279,8 +237,8 @@ class OscQP:
     def __init__(self, model: CassieModel, weights: QpWeights | None = None,
                  closed_form_first: bool = True) -> None:
         self.model = model
-        #: try the closed-form optimum first (unconstrained, or one active-set step); piqp
-        #: only when that cannot be certified optimal
+        #: try the compiled exact active-set solve first; piqp only when its optimum cannot
+        #: be certified by the KKT conditions
         self.closed_form_first = closed_form_first
         self.wts = weights or QpWeights()
         nv, nu = model.nv, model.nu
@@ -329,6 +287,7 @@ class OscQP:
         self.moment_count = 0
         self.moment_weight = 0.0
         self.last_status = 0
+        self._last: tuple[np.ndarray, np.ndarray, _Solver] | None = None
         # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
         self._build(self.rows, self._rows_of(np.ones(ncp, dtype=bool)))
 
@@ -354,6 +313,7 @@ class OscQP:
             solver = _Solver(n, nc, m.u_max, self.wts.mu, self.wts.fz_max, fz_min)
             self._solvers[(nc, fz_min)] = solver
         solver.set_fz_max(self._fz_default[:nc] if fz_max is None else fz_max[stance])
+        self._last = (P, c, solver)
         t1 = time.perf_counter()
         x = solver.closed_form(P, c) if self.closed_form_first else None
         if x is not None:
@@ -372,6 +332,13 @@ class OscQP:
         else:
             self._x = None
         return QpResult(self.u, self.lam, self.dv, status, iters, t2 - t1, t1 - t0)
+
+    def last_problem(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                    np.ndarray]:
+        """Copies of the last tick's QP: (P, c, x_l, x_u, G) of min 1/2 x'Px + c'x subject to
+        x_l <= x <= x_u and G x <= 0 (checks against other solvers)."""
+        P, c, s = self._last
+        return P.copy(), c.copy(), s.x_l.copy(), s.x_u.copy(), s._Gc.copy()
 
     def _build(self, tasks: TaskRows, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The condensed (14) for the stance rows ``rows``: its (P, c), from the compiled

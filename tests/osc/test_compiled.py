@@ -163,3 +163,82 @@ def test_compiled_condensation_matches_dense_reference(sim_model, q_stand):
             assert np.abs(P - P_ref).max() <= 1e-9 * np.abs(P_ref).max()
             assert np.abs(c - c_ref).max() <= 1e-9 * np.abs(c_ref).max()
             assert np.array_equal(P, P.T)
+
+
+def _tight_piqp(P, c, lo, hi, G) -> np.ndarray | None:
+    """piqp converged to 1e-11 (None when it does not converge that far)."""
+    import piqp
+
+    s = piqp.DenseSolver()
+    st = s.settings
+    st.eps_abs = st.eps_rel = st.eps_duality_gap_abs = st.eps_duality_gap_rel = 1e-11
+    st.max_iter = 500
+    st.verbose = False
+    s.setup(np.asfortranarray(P), c, None, None, np.asfortranarray(G), np.full(len(G), -np.inf),
+            np.zeros(len(G)), lo, hi)
+    return s.result.x.copy() if s.solve().value == 1 else None
+
+
+def _kkt_residual(P, c, lo, hi, G, x) -> tuple[float, float, int]:
+    """Independent optimality check of x: (largest constraint violation, stationarity
+    residual relative to the size of the terms, active constraints), the multipliers of
+    the active constraints found by non-negative least squares."""
+    from scipy.optimize import nnls
+
+    viol = max(float((lo - x).max()), float((x - hi).max()), float((G @ x).max()))
+    n = len(x)
+    eye = np.eye(n)
+    act = [-eye[i] for i in range(n) if x[i] - lo[i] < 1e-7]
+    act += [eye[i] for i in range(n) if hi[i] - x[i] < 1e-7]
+    act += [g for g in G if g @ x > -1e-7]
+    grad = P @ x + c
+    scale = float((np.abs(P) @ np.abs(x) + np.abs(c)).max())
+    if not act:
+        return viol, float(np.abs(grad).max()) / scale, 0
+    A = np.array(act)
+    lam, _ = nnls(A.T, -grad)  # grad + A' lam = 0, lam >= 0
+    return viol, float(np.abs(grad + A.T @ lam).max()) / scale, len(act)
+
+
+def test_osc_qp_solution_is_the_optimum_of_its_qp_with_limits_active(q_stand):
+    """On the controller's own QPs (CoM demands that saturate motors, a walking double
+    stance whose trailing-foot force cap binds) the compiled active-set solution satisfies
+    the KKT conditions (checked independently here) and costs no more than a tightly
+    converged piqp's answer, so it is the QP's optimum."""
+    from processes.osc.controller import OscController
+    from processes.osc.tasks import OscParams
+    from processes.osc.walking import DOUBLE_AFTER_LEFT
+
+    from .test_qp import _Cmd, _Plan
+
+    params = OscParams.from_yaml()
+    params.standing.com.kp[:] = 3e3
+    params.standing.com.refresh()
+    params.standing.com_offset_x = 0.05
+    params.standing.xy_ramp_s = 0.0
+    osc = OscController(params)
+    rng = np.random.default_rng(2)
+    n_active = compared = 0
+    for k in range(12):
+        v = rng.normal(scale=0.5, size=32)
+        if k < 8:  # standing, CoM pushed hard
+            _, dbg = osc.update(0.0005 * k, q_stand, v)
+        else:  # walking double stance: the trailing foot's force cap binds
+            cm = osc.model
+            plan = _Plan(DOUBLE_AFTER_LEFT + 1, 0.0, 0.02, cm.p_contact[2:4].mean(axis=0),
+                         cm.p_contact[0:2].mean(axis=0))
+            plan.stance = 1
+            _, dbg = osc.update(0.01 + 0.004 * (k - 8), q_stand, v, plan, _Cmd())
+        assert dbg.qp_status == 1 and dbg.qp_iterations == 0, dbg.status  # no piqp needed
+        P, c, lo, hi, G = osc.qp.last_problem()
+        x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
+        viol, stat, na = _kkt_residual(P, c, lo, hi, G, x)
+        assert viol <= 1e-9 and stat <= 1e-12, (viol, stat)
+        n_active += na
+        ref = _tight_piqp(P, c, lo, hi, G)  # (it fails on a zero force cap: lo = hi = 0)
+        if ref is not None:
+            compared += 1
+            cost = 0.5 * x @ P @ x + c @ x
+            assert cost <= 0.5 * ref @ P @ ref + c @ ref + 1e-12 * abs(cost)
+    assert n_active >= 12  # constraints were active: not just the unconstrained minimiser
+    assert compared >= 8
