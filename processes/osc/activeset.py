@@ -257,7 +257,11 @@ def solve_dual_active_set(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.n
             if not _refactor(Qa, m, U, T, coef, w):
                 return 0, steps, m
     # KKT certificate of the whole QP: primal and dual feasibility, stationarity (the scan
-    # above found no constraint violated by more than tol; the active ones hold to rounding)
+    # above found no constraint violated by more than tol; the active ones hold to rounding);
+    # NaN fails no comparison below, so finiteness is checked first
+    for i in range(n):
+        if not math.isfinite(x[i]):
+            return 0, steps, m
     _violations(x, lo, hi, A, b, viol)
     for j in range(nc):
         if viol[j] > tol:
@@ -272,7 +276,7 @@ def solve_dual_active_set(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.n
         g[i] = s
         scale = max(scale, mag)
     for i in range(m):
-        if lam[i] < -tol:
+        if not lam[i] >= -tol:
             return 0, steps, m
         _normal(active[i], n, A, a)
         for k in range(n):

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba
@@ -171,7 +172,7 @@ class _Solver:
         self.fz_max = fz_max
         self._bounds_changed = False
         self._caps_default = True  # x_u holds fz_max on every point
-        self._fz_idx = nu + 2 + 3 * np.arange(nc)
+        self._fz_idx_list = [nu + 2 + 3 * i for i in range(nc)]
         # the compiled active-set solver's constraint rows and scratch
         self._Gc = np.ascontiguousarray(self.G)
         ncon = 2 * n + 4 * nc
@@ -184,18 +185,21 @@ class _Solver:
         self.steps = 0  # active-set steps and active constraints of the last closed_form
         self.n_active = 0
 
-    def set_fz_max(self, caps: np.ndarray) -> None:
+    def set_fz_max(self, caps: Sequence[float]) -> None:
         """Per-point upper bounds on the normal force (N) for the next solves (one per stance
         point, in row order): the double-stance weight transfer unloads the trailing foot."""
-        default = caps.min() >= self.fz_max
+        fmax = self.fz_max
+        default = min(caps) >= fmax
         if default and self._caps_default:
             return  # the usual single-stance case: nothing to compare or copy
-        idx = self._fz_idx[: len(caps)]
-        cap = np.minimum(caps, self.fz_max)
-        if not np.array_equal(self.x_u[idx], cap):
-            self.x_u[idx] = cap
-            self._bounds_changed = True
-        self._caps_default = bool(default)
+        x_u = self.x_u
+        for i, cap in enumerate(caps):
+            j = self._fz_idx_list[i]
+            cap = min(cap, fmax)
+            if x_u[j] != cap:
+                x_u[j] = cap
+                self._bounds_changed = True
+        self._caps_default = default
 
     def closed_form(self, P: np.ndarray, c: np.ndarray) -> np.ndarray | None:
         """The QP's exact optimum without piqp when it can be certified, else None.
@@ -264,7 +268,7 @@ class OscQP:
                               w.force + w.force_change, w.torque_change, w.force_change, 0.0])
         self._x: np.ndarray | None = None
         self._xs = np.zeros(nmax + 2)
-        self._row_cache: dict[bytes, np.ndarray] = {}
+        self._row_cache: dict[bytes, tuple[np.ndarray, list[int]]] = {}
         mdl = model.m
         self._M_rownnz = np.ascontiguousarray(mdl.M_rownnz, dtype=np.int64)
         self._M_rowadr = np.ascontiguousarray(mdl.M_rowadr, dtype=np.int64)
@@ -272,7 +276,7 @@ class OscQP:
         self._motor_dof = np.ascontiguousarray(model.motor_dof, dtype=np.int64)
         self._qLD = model.d.qLD
         self._qLDiagInv = model.d.qLDiagInv
-        self._fz_default = np.full(ncp, self.wts.fz_max)
+        self._fz_default = [self.wts.fz_max] * ncp
         self.u_prev = np.zeros(nu)
         self.lam_prev = np.zeros(3 * ncp)  # per contact point, kept across contact changes
         self.u = np.zeros(nu)
@@ -289,7 +293,9 @@ class OscQP:
         self.last_status = 0
         self._last: tuple[np.ndarray, np.ndarray, _Solver] | None = None
         # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
-        self._build(self.rows, self._rows_of(np.ones(ncp, dtype=bool)))
+        self._build(self.rows, self._rows_of(np.ones(ncp, dtype=bool))[0])
+        _store(np.zeros(nmax), self._rows_of(np.ones(ncp, dtype=bool))[0], np.zeros(nu),
+               np.zeros(ncp3), np.zeros(nu), np.zeros(ncp3))
 
     def solve(self, tasks: TaskRows, stance: np.ndarray, fz_min: float = 0.0,
               fz_max: np.ndarray | None = None) -> QpResult:
@@ -304,15 +310,19 @@ class OscQP:
         t0 = time.perf_counter()
         m = self.model
         nu = self.nu
-        rows = self._rows_of(stance)
-        nc = len(rows) // 3
+        rows, points = self._rows_of(stance)
+        nc = len(points)
         n = nu + 3 * nc
         P, c = self._build(tasks, rows)
         solver = self._solvers.get((nc, fz_min))
         if solver is None:
             solver = _Solver(n, nc, m.u_max, self.wts.mu, self.wts.fz_max, fz_min)
             self._solvers[(nc, fz_min)] = solver
-        solver.set_fz_max(self._fz_default[:nc] if fz_max is None else fz_max[stance])
+        if fz_max is None:
+            solver.set_fz_max(self._fz_default[:nc])
+        else:
+            caps = fz_max.tolist()
+            solver.set_fz_max([caps[i] for i in points])
         self._last = (P, c, solver)
         t1 = time.perf_counter()
         x = solver.closed_form(P, c) if self.closed_form_first else None
@@ -322,12 +332,8 @@ class OscQP:
             status, iters, x = solver.solve(P.T, c)  # P symmetric: P.T is its F-ordered view
         t2 = time.perf_counter()
         self.last_status = status
-        if status == 1 and math.isfinite(float(x.sum())):
-            self.u[:] = x[:nu]
-            self.lam[:] = 0.0
-            self.lam[rows] = x[nu:]
-            self.u_prev[:] = self.u
-            self.lam_prev[:] = self.lam
+        # a solution becomes u, lambda (all 4 points) and the previous-tick terms
+        if status == 1 and _store(x, rows, self.u, self.lam, self.u_prev, self.lam_prev):
             self._x = x
         else:
             self._x = None
@@ -372,19 +378,41 @@ class OscQP:
         np.dot(self._Sbuf[n], xs, out=self.lam_h)  # lambda_h = S [x; 1; 1]
         np.dot(self._Gbuf[n], xs, out=self.dv)  # dv = G [x; 1; 1]
 
-    def _rows_of(self, stance: np.ndarray) -> np.ndarray:
-        """Force/Jacobian row indices of the stance points (cached per mask)."""
+    def _rows_of(self, stance: np.ndarray) -> tuple[np.ndarray, list[int]]:
+        """Force/Jacobian row indices and the point indices of the stance points (cached per
+        mask)."""
         key = stance.tobytes()
         r = self._row_cache.get(key)
         if r is None:
             idx = np.flatnonzero(stance)
-            r = (3 * idx[:, None] + np.arange(3)).reshape(-1)
+            r = ((3 * idx[:, None] + np.arange(3)).reshape(-1), idx.tolist())
             self._row_cache[key] = r
         return r
 
 
 # ---------------------------------------------------------------------- compiled kernels
 _jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def _store(x: np.ndarray, rows: np.ndarray, u: np.ndarray, lam: np.ndarray,
+           u_prev: np.ndarray, lam_prev: np.ndarray) -> bool:
+    """A finite solution x = [u, lambda_c of ``rows``] into u, lam (zero off the stance
+    rows) and the previous-tick copies; False (nothing written) if x is not finite."""
+    for i in range(x.size):
+        if not math.isfinite(x[i]):
+            return False
+    nu = u.size
+    for i in range(nu):
+        u[i] = x[i]
+        u_prev[i] = x[i]
+    for i in range(lam.size):
+        lam[i] = 0.0
+    for r in range(rows.size):
+        lam[rows[r]] = x[nu + r]
+    for i in range(lam.size):
+        lam_prev[i] = lam[i]
+    return True
 
 
 @_jit
@@ -473,15 +501,14 @@ def _condense(Jh: np.ndarray, Jh_dot_v: np.ndarray, h: np.ndarray, Jc: np.ndarra
     nf = n + 1  # generalized-force directions besides Jh': B (nu), Jc' (n3), -h (1)
     na = nv if wts[0] > 0.0 else 0
     m = na + nt + n3  # cost rows (14a): ||dv||^2, tasks, soft contact (14d)
+    k = nh + nf
     o = 0
+    Y = buf[o : o + nv * k].reshape((nv, k))
+    o += nv * k
     Yh = buf[o : o + nv * nh].reshape((nv, nh))
     o += nv * nh
-    YF = buf[o : o + nv * nf].reshape((nv, nf))
-    o += nv * nf
-    Lam = buf[o : o + nh * nh].reshape((nh, nh))
-    o += nh * nh
-    WF = buf[o : o + nh * nf].reshape((nh, nf))
-    o += nh * nf
+    W = buf[o : o + nh * k].reshape((nh, k))
+    o += nh * k
     src = buf[o : o + 15 * nv].reshape((15, nv))
     o += 15 * nv
     SG = buf[o : o + 15 * (n + 2)].reshape((15, n + 2))
@@ -493,34 +520,35 @@ def _condense(Jh: np.ndarray, Jh_dot_v: np.ndarray, h: np.ndarray, Jc: np.ndarra
     row = buf[o : o + n + 2]
     o += n + 2
     tmp = buf[o : o + n + 2]
-    # (13)/(14b): M dv = Jh' lambda_h + [B, Jc', -h] [x; 1]: Yh = M^-1 Jh', YF = M^-1 [B Jc' -h]
+    # (13)/(14b): M dv = Jh' lambda_h + [B, Jc', -h] [x; 1]: Y = M^-1 [Jh', B, Jc', -h]
     for i in range(nv):
         for r in range(nh):
-            Yh[i, r] = Jh[r, i]
-        for j in range(nf):
-            YF[i, j] = 0.0
+            Y[i, r] = Jh[r, i]
+        for j in range(nh, k):
+            Y[i, j] = 0.0
         for r in range(n3):
-            YF[i, nu + r] = Jc[rows[r], i]
-        YF[i, nf - 1] = -h[i]
+            Y[i, nh + nu + r] = Jc[rows[r], i]
+        Y[i, k - 1] = -h[i]
     for a in range(nu):
-        YF[motor_dof[a], a] = 1.0
-    _solve_ld(Yh, nh, qLD, qLDiagInv, rownnz, rowadr, colind)
-    _solve_ld(YF, nf, qLD, qLDiagInv, rownnz, rowadr, colind)
+        Y[motor_dof[a], nh + a] = 1.0
+    _solve_ld(Y, k, qLD, qLDiagInv, rownnz, rowadr, colind)
     # (14c) eliminates lambda_h: Lam lambda_h = -Jh M^-1 [B, Jc', -h] [x; 1] - Jdot_h v with
-    # Lam = Jh M^-1 Jh': S = Lam^-1 [-Jh YF, -Jdot_h v]
-    np.dot(Jh, Yh, Lam)
-    np.dot(Jh, YF, WF)
+    # Lam = Jh M^-1 Jh' = W[:, :nh]: S = Lam^-1 [-W[:, nh:], -Jdot_h v]
+    np.dot(Jh, Y, W)
     for r in range(nh):
         for j in range(nf):
-            S[r, j] = -WF[r, j]
+            S[r, j] = -W[r, nh + j]
         S[r, nf] = -Jh_dot_v[r]
-    if _cholesky_solve(Lam, S, n + 2) != 0:
+    if _cholesky_solve(W[:, :nh], S, n + 2) != 0:
         return 1
-    # dv = G [x; 1; 1], G = Yh S + [YF, 0]
+    # dv = G [x; 1; 1], G = (M^-1 Jh') S + [M^-1 [B, Jc', -h], 0]
+    for i in range(nv):
+        for r in range(nh):
+            Yh[i, r] = Y[i, r]
     np.dot(Yh, S, G)
     for i in range(nv):
         for j in range(nf):
-            G[i, j] += YF[i, j]
+            G[i, j] += Y[i, nh + j]
     # the model's source rows as affine functions of x: SG = [J_com; Jc] G
     for i in range(nv):
         for a in range(3):

@@ -15,8 +15,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
-from scipy.linalg import lapack
 
 from .model import LEFT, RIGHT, CassieModel
 from .qp import OscQP, TaskRows
@@ -30,7 +30,7 @@ from .tasks import (
     add_joint_task,
 )
 
-_gesv = lapack.dgesv
+_jit = numba.njit(cache=True, nogil=True)
 
 SINGLE_LEFT, SINGLE_RIGHT, DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, STANDING = range(5)
 _STANCE_MASKS = {
@@ -173,7 +173,7 @@ class SwingFootTrajectory:
     0.1 T before mid-swing on, where it would nearly repeat the continuity row). Stepping up
     by ``step_up_min`` or more, the waypoints are those of ``swing_waypoints`` (one row each,
     each dropped likewise 0.1 T before its time). The equality-constrained KKT system is
-    solved in closed form, one factorisation for 3 axes.
+    solved in closed form, one factorisation for 3 axes (compiled: ``_swing_solve``).
     """
 
     def __init__(self, degree: int = 8, freeze_s: float = 0.02, mid_margin: float = 0.1,
@@ -201,38 +201,11 @@ class SwingFootTrajectory:
         self.active = False
         self.freeze_s = freeze_s
         self.mid_margin = mid_margin
-        # KKT templates [2Q A^T; A 0], A = [end rows (3); waypoint rows; continuity rows (3)],
-        # one per set of waypoint times; only the continuity rows change from tick to tick.
-        self._K: dict[tuple[float, ...], np.ndarray] = {}
-        self._rhs: dict[tuple[float, ...], np.ndarray] = {}
-
-    def _template(self, taus: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """The KKT matrix and right-hand side for waypoints at ``taus`` (built once each)."""
-        K = self._K.get(taus)
-        if K is None:
-            nc = self.nc
-            ne = 6 + len(taus)
-            K = np.zeros((nc + ne, nc + ne))
-            K[:nc, :nc] = self._Q2
-            K[nc : nc + 3, :nc] = self._basis3(1.0)
-            for i, tau in enumerate(taus):
-                K[nc + 3 + i, :nc] = self._basis3(tau)[0]
-            K[:nc, nc:] = K[nc:, :nc].T
-            self._K[taus] = K
-            self._rhs[taus] = np.zeros((nc + ne, 3))
-        return K, self._rhs[taus]
-
-    def _basis3(self, tau: float) -> np.ndarray:
-        """Rows [p, dp/dtau, d2p/dtau2] of the monomials 1, tau, ..., tau^deg at tau."""
-        nc = self.nc
-        pw = [1.0] * nc
-        for i in range(1, nc):
-            pw[i] = pw[i - 1] * tau
-        return np.array([
-            pw,
-            [0.0] + [i * pw[i - 1] for i in range(1, nc)],
-            [0.0, 0.0] + [i * (i - 1) * pw[i - 2] for i in range(2, nc)],
-        ])
+        # scratch of the compiled KKT solve: waypoints (tau, x, y, z), KKT matrix and rhs
+        self._wp = np.zeros((4, 4))
+        self._K = np.zeros((nc + 6 + 4, nc + 6 + 4))
+        self._rhs = np.zeros((nc + 6 + 4, 3))
+        self._out = np.zeros((3, 3))
 
     def start(self, t: float, liftoff: float, touchdown: float, p_now: np.ndarray) -> None:
         """Begin a swing at the current foot position with zero velocity and acceleration."""
@@ -248,10 +221,14 @@ class SwingFootTrajectory:
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration of the current plan at time t (clamped to T)."""
+        pos, vel, acc = self.evaluate_lists(t)
+        return np.array(pos), np.array(vel), np.array(acc)
+
+    def evaluate_lists(self, t: float) -> list[list[float]]:
+        """``evaluate`` as three lists of floats [pos, vel, acc] (the per-tick path)."""
         tau = min(max((t - self.liftoff) / self.T, 0.0), 1.0)
-        T = self.T
-        out = self._basis3(tau) @ self.coef
-        return out[0], out[1] / T, out[2] / (T * T)
+        _swing_eval(self.coef, tau, self.T, self._out)
+        return self._out.tolist()
 
     def update(self, t: float, touchdown: float, p_des: np.ndarray, clearance: float) -> None:
         """Re-solve (23) for the newest touchdown time and target, then advance to t."""
@@ -260,31 +237,125 @@ class SwingFootTrajectory:
         if remaining > self.freeze_s:
             # continuity with the previous tick's polynomial at the previous tick's time
             tau_prev = min(max((self.t_prev - self.liftoff) / self.T, 0.0), 1.0)
-            prev = self._basis3(tau_prev) @ self.coef  # old polynomial, old T: d/dtau_old
             tau_k = (self.t_prev - self.liftoff) / T_new
             # a waypoint near the current time would nearly repeat the continuity row p(tau_k)
-            wps = [w for w in swing_waypoints(self.p0, p_des, clearance, self.step_up_min,
+            wp, n = self._wp, 0
+            for tau, point in swing_waypoints(self.p0, p_des, clearance, self.step_up_min,
                                               self.step_up_clearance, self.step_up_height,
-                                              self.lift_tau, self.approach_tau)
-                   if tau_k < w[0] - self.mid_margin]
-            K, rhs = self._template(tuple(w[0] for w in wps))
-            nc = self.nc
-            r = nc + 3 + len(wps)
-            B = self._basis3(tau_k)
-            K[r : r + 3, :nc] = B
-            K[:nc, r : r + 3] = B.T
-            s = T_new / self.T  # d/dtau_new = (T_new / T_old) d/dtau_old
-            rhs[r] = prev[0]
-            rhs[r + 1] = prev[1] * s
-            rhs[r + 2] = prev[2] * (s * s)
-            rhs[nc] = p_des  # p(T) = p_des; p'(T) = p''(T) = 0 stay zero
-            for i, (_, point) in enumerate(wps):
-                rhs[nc + 3 + i] = point
-            _, _, sol, info = _gesv(K, rhs)
-            if info == 0:
-                self.coef[:] = sol[:nc]
+                                              self.lift_tau, self.approach_tau):
+                if tau_k < tau - self.mid_margin:
+                    wp[n, 0] = tau
+                    wp[n, 1:] = point
+                    n += 1
+            # d/dtau_new = (T_new / T_old) d/dtau_old
+            if _swing_solve(self._Q2, self.coef, tau_prev, tau_k, T_new / self.T, p_des, wp, n,
+                            self._K, self._rhs) == 0:
                 self.T = T_new
         self.t_prev = t
+
+
+@_jit
+def _basis_row(tau: float, d: int, out: np.ndarray) -> None:
+    """Row ``d`` (0: p, 1: dp/dtau, 2: d2p/dtau2) of the monomials 1, tau, ..., tau^deg."""
+    nc = out.size
+    pw = 1.0  # tau^(i - d)
+    for i in range(nc):
+        if i < d:
+            out[i] = 0.0
+            continue
+        f = 1.0 if d == 0 else (i if d == 1 else i * (i - 1))
+        out[i] = f * pw
+        pw *= tau
+
+
+@_jit
+def _swing_eval(coef: np.ndarray, tau: float, T: float, out: np.ndarray) -> None:
+    """out = [p, dp/dt, d2p/dt2] (3, 3) of the polynomial ``coef`` (nc, 3) at tau (time T)."""
+    nc = coef.shape[0]
+    row = np.empty(nc)
+    for d in range(3):
+        _basis_row(tau, d, row)
+        scale = 1.0 if d == 0 else (T if d == 1 else T * T)
+        for a in range(3):
+            s = 0.0
+            for i in range(nc):
+                s += row[i] * coef[i, a]
+            out[d, a] = s / scale if d > 0 else s
+
+
+@_jit
+def _swing_solve(Q2: np.ndarray, coef: np.ndarray, tau_prev: float, tau_k: float, s: float,
+                 p_des: np.ndarray, wp: np.ndarray, nwp: int, Kbuf: np.ndarray,
+                 rbuf: np.ndarray) -> int:
+    """One solve of (23): the KKT system [2Q A'; A 0] [c; nu] = [0; d] with A = [end rows
+    p, p', p'' at tau = 1 (3); waypoint positions (nwp); continuity p, p', p'' at tau_k (3)]
+    and d = [p_des, 0, 0; waypoints; the old polynomial at tau_prev, its derivatives scaled
+    by s and s^2]; LU with partial pivoting, 3 right-hand sides. Writes ``coef`` (nc, 3) and
+    returns 0, or 1 (``coef`` unchanged) when the system is singular."""
+    nc = coef.shape[0]
+    N = nc + 6 + nwp
+    K = Kbuf[:N, :N]
+    rhs = rbuf[:N]
+    row = np.empty(nc)
+    prev = np.zeros((3, 3))  # old polynomial at tau_prev: d/dtau_old
+    for d in range(3):
+        _basis_row(tau_prev, d, row)
+        for a in range(3):
+            for i in range(nc):
+                prev[d, a] += row[i] * coef[i, a]
+    K[:, :] = 0.0
+    rhs[:, :] = 0.0
+    K[:nc, :nc] = Q2
+    for d in range(3):  # p(1) = p_des, p'(1) = p''(1) = 0
+        _basis_row(1.0, d, row)
+        K[nc + d, :nc] = row
+    for w in range(nwp):
+        _basis_row(wp[w, 0], 0, row)
+        K[nc + 3 + w, :nc] = row
+        rhs[nc + 3 + w] = wp[w, 1:]
+    r = nc + 3 + nwp
+    for d in range(3):
+        _basis_row(tau_k, d, row)
+        K[r + d, :nc] = row
+    for i in range(nc, N):
+        for j in range(nc):
+            K[j, i] = K[i, j]
+    rhs[nc] = p_des
+    f = 1.0
+    for d in range(3):
+        for a in range(3):
+            rhs[r + d, a] = prev[d, a] * f
+        f = s if d == 0 else s * s
+    # Gaussian elimination with partial pivoting (as LAPACK's dgesv)
+    for k in range(N):
+        piv = k
+        big = abs(K[k, k])
+        for i in range(k + 1, N):
+            if abs(K[i, k]) > big:
+                big = abs(K[i, k])
+                piv = i
+        if big == 0.0:
+            return 1
+        if piv != k:
+            for j in range(N):
+                K[k, j], K[piv, j] = K[piv, j], K[k, j]
+            for a in range(3):
+                rhs[k, a], rhs[piv, a] = rhs[piv, a], rhs[k, a]
+        for i in range(k + 1, N):
+            lik = K[i, k] / K[k, k]
+            if lik != 0.0:
+                for j in range(k + 1, N):
+                    K[i, j] -= lik * K[k, j]
+                for a in range(3):
+                    rhs[i, a] -= lik * rhs[k, a]
+    for i in range(N - 1, -1, -1):
+        for a in range(3):
+            t = rhs[i, a]
+            for j in range(i + 1, N):
+                t -= K[i, j] * rhs[j, a]
+            rhs[i, a] = t / K[i, i]
+    coef[:, :] = rhs[:nc]
+    return 0
 
 
 def _moment_row(row: np.ndarray, points: np.ndarray, idx: Any, about: np.ndarray,
@@ -381,9 +452,8 @@ class WalkingController:
             self._swing_key = key
             self.swing.start(t, ph.liftoff_s, ph.touchdown_s, m.foot_center(sw))
         self.swing.update(t, ph.touchdown_s, next_pos, p.swing_clearance)
-        pos, vel, acc = self.swing.evaluate(t)
-        add_foot_position_task(rows, log, m, sw, p.swing_foot, pos.tolist(), vel.tolist(),
-                               acc.tolist())
+        pos, vel, acc = self.swing.evaluate_lists(t)
+        add_foot_position_task(rows, log, m, sw, p.swing_foot, pos, vel, acc)
         # Swing toe: foot at atan(k_x) to the horizontal (Section V-C), or level ("level": on
         # level footholds, where atan(k_x) would land the heel first, L/2 sin(atan k_x) ~ 3 cm
         # below the foot's centre on 15 cm stairs); swing hip yaw at zero (Section V-C).

@@ -158,7 +158,7 @@ def test_compiled_condensation_matches_dense_reference(sim_model, q_stand):
         qp.moment_target[:] = rng.normal(size=2)
         qp.moment_weight = 1.3
         for stance in (np.ones(4, dtype=bool), np.array([True, True, False, False])):
-            P, c = qp._build(qp.rows, qp._rows_of(stance))
+            P, c = qp._build(qp.rows, qp._rows_of(stance)[0])
             P_ref, c_ref = _reference_qp(cm, qp, qp.rows, stance)
             assert np.abs(P - P_ref).max() <= 1e-9 * np.abs(P_ref).max()
             assert np.abs(c - c_ref).max() <= 1e-9 * np.abs(c_ref).max()
@@ -242,3 +242,56 @@ def test_osc_qp_solution_is_the_optimum_of_its_qp_with_limits_active(q_stand):
             assert cost <= 0.5 * ref @ P @ ref + c @ ref + 1e-12 * abs(cost)
     assert n_active >= 12  # constraints were active: not just the unconstrained minimiser
     assert compared >= 8
+
+
+def _basis3(tau: float, nc: int) -> np.ndarray:
+    pw = tau ** np.arange(nc)
+    i = np.arange(nc)
+    d1 = np.r_[0.0, i[1:] * pw[:-1]]
+    d2 = np.r_[0.0, 0.0, i[2:] * (i[2:] - 1) * pw[:-2]]
+    return np.array([pw, d1, d2])
+
+
+def test_compiled_swing_solve_matches_dense_kkt_of_23():
+    """Each re-solve of the swing QP (23) against the KKT system written out with numpy:
+    end conditions, waypoint rows (the step-up set too) and the continuity rows."""
+    from processes.osc.walking import SwingFootTrajectory, swing_waypoints
+
+    rng = np.random.default_rng(4)
+    for step_up in (0.0, 0.05):
+        traj = SwingFootTrajectory(8, step_up_min=step_up)
+        nc = traj.nc
+        p0 = np.array([0.0, -0.1, 0.0])
+        traj.start(0.0, 0.0, 0.3, p0)
+        t = 0.0
+        for _ in range(40):
+            t += 0.004
+            td = 0.3 + rng.normal(scale=0.01)
+            des = np.array([0.3, -0.1, 0.15]) + rng.normal(scale=0.02, size=3)
+            coef0, T0, tp = traj.coef.copy(), traj.T, traj.t_prev
+            traj.update(t, td, des, 0.15)
+            T_new = max(td - traj.liftoff, 0.05)
+            if T_new - (tp - traj.liftoff) <= traj.freeze_s:
+                continue
+            tau_prev = min(max(tp / T0, 0.0), 1.0)
+            tau_k = tp / T_new
+            prev = _basis3(tau_prev, nc) @ coef0
+            s = T_new / T0
+            wps = [w for w in swing_waypoints(p0, des, 0.15, step_up, traj.step_up_clearance,
+                                              traj.step_up_height, traj.lift_tau,
+                                              traj.approach_tau)
+                   if tau_k < w[0] - traj.mid_margin]
+            A = np.vstack([_basis3(1.0, nc)] + [_basis3(w[0], nc)[:1] for w in wps]
+                          + [_basis3(tau_k, nc)])
+            d = np.vstack([des, np.zeros((2, 3))] + [np.array(w[1])[None] for w in wps]
+                          + [prev[0], prev[1] * s, prev[2] * s * s])
+            K = np.block([[traj._Q2, A.T], [A, np.zeros((len(A), len(A)))]])
+            want = np.linalg.solve(K, np.vstack([np.zeros((nc, 3)), d]))[:nc]
+            # cond(K) ~ 1e8: two LU solves agree to ~1e-9 relative, the exact one to ~1e-9
+            np.testing.assert_allclose(traj.coef, want, rtol=1e-7, atol=1e-7)
+            assert T_new == traj.T
+            pos, vel, acc = traj.evaluate(t)
+            B = _basis3(min(max((t - traj.liftoff) / traj.T, 0.0), 1.0), nc) @ traj.coef
+            np.testing.assert_allclose(pos, B[0], atol=1e-12)
+            np.testing.assert_allclose(vel, B[1] / traj.T, atol=1e-10)
+            np.testing.assert_allclose(acc, B[2] / traj.T**2, atol=1e-8)
