@@ -210,13 +210,14 @@ class CassieModel:
                     a.qfrc_passive, self._Jpts, self._acc, self._pts, self.h, self.Jh,
                     self.Jh_dot_v, self.J_com, self._small)
         # float copies for the tasks' 3-vector arithmetic (cheaper than numpy calls)
-        self.R_list = self.R_pelvis.tolist()
-        self.p_contact_l = self.p_contact.tolist()
-        self.v_contact_l = self.v_contact.tolist()
+        small = self._small.tolist()
+        self.R_list = small[0:3]
+        self.com_l = small[5]
+        self.com_vel_l = small[6]
+        self.com_dot_v_l = small[7]
+        self.p_contact_l = small[8:12]
+        self.v_contact_l = small[12:16]
         self.Jc_dot_v_l = self.Jc_dot_v.tolist()
-        self.com_l = self.com.tolist()
-        self.com_vel_l = self.com_vel.tolist()
-        self.com_dot_v_l = self.com_dot_v.tolist()
 
     def solve_M(self, out: np.ndarray, rhs: np.ndarray) -> None:
         """``out = M^-1 rhs`` for row-stacked right-hand sides (k, nv), with MuJoCo's factor."""
@@ -231,6 +232,11 @@ class CassieModel:
     def foot_center(self, side: int) -> np.ndarray:
         """Midpoint of a foot's two contact points (world): the swing-foot task point."""
         return 0.5 * (self.p_contact[2 * side] + self.p_contact[2 * side + 1])
+
+    def foot_center_l(self, side: int) -> list[float]:
+        """``foot_center`` as a list of floats (the per-tick path)."""
+        f, r = self.p_contact_l[2 * side], self.p_contact_l[2 * side + 1]
+        return [0.5 * (f[0] + r[0]), 0.5 * (f[1] + r[1]), 0.5 * (f[2] + r[2])]
 
     def pelvis_yaw(self) -> float:
         """Yaw of the pelvis x axis in the world (rad)."""

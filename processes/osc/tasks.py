@@ -272,7 +272,7 @@ class TaskLog:
     def add(self, name: str, *err: float) -> None:
         """Record a task and the norm of its error components."""
         self.names.append(name)
-        self.errors.append(math.sqrt(sum(e * e for e in err)))
+        self.errors.append(math.hypot(*err))
 
 
 def rot_log_list(R: list[list[float]]) -> tuple[float, float, float]:
@@ -302,8 +302,10 @@ class PelvisOrientationTask:
         R = m.R_list  # pelvis rotation (body -> world) as nested lists
         cy, sy = math.cos(yaw_des), math.sin(yaw_des)
         # E = R^T Rz(yaw_des)
-        E = [[R[0][i] * cy + R[1][i] * sy, -R[0][i] * sy + R[1][i] * cy, R[2][i]]
-             for i in range(3)]
+        r0, r1, r2 = R
+        E = [[r0[0] * cy + r1[0] * sy, -r0[0] * sy + r1[0] * cy, r2[0]],
+             [r0[1] * cy + r1[1] * sy, -r0[1] * sy + r1[1] * cy, r2[1]],
+             [r0[2] * cy + r1[2] * sy, -r0[2] * sy + r1[2] * cy, r2[2]]]
         e = rot_log_list(E)
         w = v[3:6].tolist()
         kp, kd, wt = gains.kp_list, gains.kd_list, gains.w_list

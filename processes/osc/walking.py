@@ -68,21 +68,25 @@ class ComHeightPlane:
 
     def __init__(self, params: WalkingParams) -> None:
         self.p = params
-        self.k = np.zeros(2)  # low-passed (k_x, k_y)
+        self.k = np.zeros(2)  # low-passed (k_x, k_y) (a copy of the float state below)
+        self._kx = self._ky = 0.0
         self.t_last: float | None = None
 
     def reset(self) -> None:
         """Forget the filter state (a new walking episode)."""
         self.t_last = None
         self.k[:] = 0.0
+        self._kx = self._ky = 0.0
 
     def reference(self, t: float, stance_pos: Any, next_pos: Any, yaw: float,
                   com: Any, com_vel: Any) -> tuple[float, float, float]:
         """Return (z_des, zdot_des, k_x) in the world frame for the current CoM state
         (positions as 3-sequences of floats, world frame)."""
         c, s = math.cos(yaw), math.sin(yaw)
-        d = [next_pos[i] - stance_pos[i] for i in range(3)]
-        px, py, pz = c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]  # stance frame
+        s0, s1, s2 = (float(x) for x in stance_pos)
+        n0, n1, n2 = (float(x) for x in next_pos)
+        d0, d1 = n0 - s0, n1 - s1
+        px, py, pz = c * d0 + s * d1, -s * d0 + c * d1, n2 - s2  # stance frame
         det = px * px + py * py  # (21): [[px, py], [-py, px]] k = [pz, 0]
         if det > 1e-6:
             kx, ky = px * pz / det, py * pz / det
@@ -90,20 +94,24 @@ class ComHeightPlane:
             kx = ky = 0.0
         # first-order low-pass with a com_filter_hz cutoff (Section V-A)
         if self.t_last is None:
-            self.k[:] = (kx, ky)
+            self._kx, self._ky = kx, ky
         else:
             dt = max(0.0, t - self.t_last)
             a = 1.0 - math.exp(-2.0 * math.pi * self.p.com_filter_hz * dt)
-            self.k[0] += a * (kx - self.k[0])
-            self.k[1] += a * (ky - self.k[1])
+            self._kx += a * (kx - self._kx)
+            self._ky += a * (ky - self._ky)
         self.t_last = t
-        r = [com[i] - stance_pos[i] for i in range(3)]
-        xc, yc = c * r[0] + s * r[1], -s * r[0] + c * r[1]
+        fx, fy = self._kx, self._ky
+        self.k[0] = fx
+        self.k[1] = fy
+        c0, c1, c2 = (float(x) for x in com)
+        r0, r1 = c0 - s0, c1 - s1
+        xc, yc = c * r0 + s * r1, -s * r0 + c * r1
         vx, vy = c * com_vel[0] + s * com_vel[1], -s * com_vel[0] + c * com_vel[1]
-        z = stance_pos[2] + self.p.com_height + self.k[0] * xc + self.k[1] * yc  # (22)
+        z = s2 + self.p.com_height + fx * xc + fy * yc  # (22)
         clip = self.p.com_clip  # keep z_des within 2.5 cm of the measured CoM height
-        z = min(max(z, com[2] - clip), com[2] + clip)
-        return z, self.k[0] * vx + self.k[1] * vy, float(self.k[0])
+        z = min(max(z, c2 - clip), c2 + clip)
+        return z, fx * vx + fy * vy, fx
 
 
 def swing_midpoint(p0: np.ndarray, p_des: np.ndarray, clearance: float) -> list[float]:
@@ -358,15 +366,19 @@ def _swing_solve(Q2: np.ndarray, coef: np.ndarray, tau_prev: float, tau_k: float
     return 0
 
 
-def _moment_row(row: np.ndarray, points: np.ndarray, idx: Any, about: np.ndarray,
+def _moment_row(row: np.ndarray, points: Any, idx: Any, about: Any,
                 axis: tuple[float, float, float]) -> None:
     """Fill ``row`` (3 per contact point) with the moment along ``axis`` about ``about`` of
-    the forces at ``points[idx]``: axis . ((p_i - c) x f_i) = f_i . (axis x (p_i - c))."""
-    row[:] = 0.0
+    the forces at ``points[idx]``: axis . ((p_i - c) x f_i) = f_i . (axis x (p_i - c)).
+    ``points`` and ``about`` are sequences of floats (world)."""
+    vals = [0.0] * len(row)
     ax, ay, az = axis
+    a0, a1, a2 = about
     for i in idx:
-        rx, ry, rz = (points[i] - about).tolist()
-        row[3 * i : 3 * i + 3] = (ay * rz - az * ry, az * rx - ax * rz, ax * ry - ay * rx)
+        p = points[i]
+        rx, ry, rz = p[0] - a0, p[1] - a1, p[2] - a2
+        vals[3 * i : 3 * i + 3] = (ay * rz - az * ry, az * rx - ax * rz, ax * ry - ay * rx)
+    row[:] = vals
 
 
 class WalkingController:
@@ -403,11 +415,11 @@ class WalkingController:
         trail = 1 - stance
         self.fz_max[2 * trail : 2 * trail + 2] = 0.5 * (1.0 - f) * m.mass * 9.81  # 2 points
         if self.p.ankle_torque_weight > 0.0:
-            p_minus, p_plus = m.foot_center(trail), m.foot_center(stance)
-            cop = p_minus + f * (p_plus - p_minus)
+            p_minus, p_plus = m.foot_center_l(trail), m.foot_center_l(stance)
+            cop = [p_minus[a] + f * (p_plus[a] - p_minus[a]) for a in range(3)]
             c, s = math.cos(yaw), math.sin(yaw)
             for r, axis in enumerate(((c, s, 0.0), (-s, c, 0.0))):
-                _moment_row(qp.moment_rows[r], m.p_contact, range(4), cop, axis)
+                _moment_row(qp.moment_rows[r], m.p_contact_l, range(4), cop, axis)
                 qp.moment_target[r] = 0.0
             qp.moment_count = 2
             qp.moment_weight = self.p.ankle_torque_weight
@@ -428,7 +440,7 @@ class WalkingController:
         st = ph.stance
         sw = 1 - st
         stance_pos = [float(x) for x in plan.stance_foot_world]
-        next_pos = np.asarray(plan.next_footstep_world, dtype=float)
+        next_pos = [float(x) for x in plan.next_footstep_world]
         yaw = float(plan.stance_yaw)
 
         # CoM height on the footstep plane (21)-(22), z only (Table VII weights x, y = 0).
@@ -451,7 +463,7 @@ class WalkingController:
         if key != self._swing_key:
             self._swing_key = key
             self.swing.start(t, ph.liftoff_s, ph.touchdown_s, m.foot_center(sw))
-        self.swing.update(t, ph.touchdown_s, next_pos, p.swing_clearance)
+        self.swing.update(t, ph.touchdown_s, np.array(next_pos), p.swing_clearance)
         pos, vel, acc = self.swing.evaluate_lists(t)
         add_foot_position_task(rows, log, m, sw, p.swing_foot, pos, vel, acc)
         # Swing toe: foot at atan(k_x) to the horizontal (Section V-C), or level ("level": on
@@ -469,8 +481,8 @@ class WalkingController:
         # and push the robot forward every step).
         if p.ankle_torque_weight > 0.0:
             ey = (-math.sin(yaw), math.cos(yaw), 0.0)
-            _moment_row(qp.moment_rows[0], m.p_contact, (2 * st, 2 * st + 1),
-                        m.foot_center(st), ey)
+            _moment_row(qp.moment_rows[0], m.p_contact_l, (2 * st, 2 * st + 1),
+                        m.foot_center_l(st), ey)
             qp.moment_target[0] = float(plan.ankle_torque)
             qp.moment_count = 1
             qp.moment_weight = p.ankle_torque_weight
