@@ -89,8 +89,10 @@ class CassieModel:
         self.foot_body = np.array([m.body(f"{s}-foot").id for s in SIDES], dtype=int)
         self.foot_joint_axis_jnt = np.array([jid[f"{s}-foot"] for s in SIDES], dtype=int)
         self.pelvis_body = m.body("cassie-pelvis").id
-        self.hip_yaw_qpos = np.array([m.jnt_qposadr[jid[f"{s}-hip-yaw"]] for s in SIDES])
-        self.hip_yaw_dof = np.array([m.jnt_dofadr[jid[f"{s}-hip-yaw"]] for s in SIDES])
+        self.hip_yaw_qpos = np.array([m.jnt_qposadr[jid[f"{s}-hip-yaw"]] for s in SIDES],
+                                     dtype=np.int64)
+        self.hip_yaw_dof = np.array([m.jnt_dofadr[jid[f"{s}-hip-yaw"]] for s in SIDES],
+                                    dtype=np.int64)
         self.foot_qpos = np.array([m.jnt_qposadr[jid[f"{s}-foot"]] for s in SIDES])
         self.foot_dof = np.array([m.jnt_dofadr[jid[f"{s}-foot"]] for s in SIDES])
         self.mass = float(m.body_subtreemass[self.pelvis_body])
@@ -174,6 +176,8 @@ class CassieModel:
         self.p_contact = self._small[8:12]
         self.v_contact = self._small[12:16]
         self.rod_residual = self._small[16 : 16 + ne]
+        #: all of the above as one array, as the compiled task rows read it (tasks.KIN_*)
+        self.kin = self._small
         # views of the point Jacobians: contact rows (14d) in world frame
         self.Jc = self._Jpts[2 * ne :].reshape(3 * self.n_contact_points, nv)
         self.Jc_dot_v = self._acc[2 * ne :].reshape(3 * self.n_contact_points)
@@ -191,6 +195,11 @@ class CassieModel:
         self.com_l = [0.0] * 3
         self.com_vel_l = [0.0] * 3
         self.com_dot_v_l = [0.0] * 3
+        a = self._arr  # the kernel's arguments: fixed objects, filled in place
+        self._kargs = (self._topo, self._ptcfg, a.qvel, a.xpos, a.xmat, a.xaxis, a.xipos,
+                       a.subtree_com, a.cdof, a.cdof_dot, a.cvel, a.cfrc_int, a.qfrc_bias,
+                       a.qfrc_passive, self._Jpts, self._acc, self._pts, self.h, self.Jh,
+                       self.Jh_dot_v, self.J_com, self._small)
         # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
         self.update(m.qpos0, np.zeros(nv))
 
@@ -205,10 +214,7 @@ class CassieModel:
         # RNE with qacc = 0: the CoM bias acceleration comes from the pelvis subtree's cfrc_int.
         a.qacc[:] = 0.0
         mujoco.mj_rnePostConstraint(m, d)
-        _kinematics(self._topo, self._ptcfg, a.qvel, a.xpos, a.xmat, a.xaxis, a.xipos,
-                    a.subtree_com, a.cdof, a.cdof_dot, a.cvel, a.cfrc_int, a.qfrc_bias,
-                    a.qfrc_passive, self._Jpts, self._acc, self._pts, self.h, self.Jh,
-                    self.Jh_dot_v, self.J_com, self._small)
+        _kinematics(*self._kargs)
         # float copies for the tasks' 3-vector arithmetic (cheaper than numpy calls)
         small = self._small.tolist()
         self.R_list = small[0:3]

@@ -80,12 +80,11 @@ class TaskRows:
 
     def __init__(self, nv: int, max_rows: int = 64) -> None:
         self.nv = nv
-        self.i0 = np.zeros(max_rows, dtype=np.int64)
-        self.i1 = np.full(max_rows, -1, dtype=np.int64)
-        self.c0 = np.zeros(max_rows)
-        self.c1 = np.zeros(max_rows)
-        self.b = np.zeros(max_rows)
-        self.w = np.zeros(max_rows)
+        #: per row [i0, i1] and [c0, c1, b, w] (the compiled tasks and QP read these two)
+        self.ri = np.zeros((max_rows, 2), dtype=np.int64)
+        self.rf = np.zeros((max_rows, 4))
+        self.i0, self.i1 = self.ri[:, 0], self.ri[:, 1]
+        self.c0, self.c1, self.b, self.w = (self.rf[:, j] for j in range(4))
         #: explicit rows given with ``add`` (source ``ROW_DOF + nv + row``)
         self.dense = np.zeros((max_rows, nv))
         self.n = 0
@@ -99,12 +98,8 @@ class TaskRows:
         """Append the row ``c0 * (S[i0] + c1 * S[i1])`` (``i1 = -1``: ``c0 * S[i0]``) with
         right-hand side ``b`` and weight ``w``."""
         i = self.n
-        self.i0[i] = i0
-        self.c0[i] = c0
-        self.i1[i] = i1
-        self.c1[i] = c1
-        self.b[i] = b
-        self.w[i] = w
+        self.ri[i] = i0, i1
+        self.rf[i] = c0, c1, b, w
         self.n = i + 1
 
     def add(self, J: np.ndarray, Jdot_v: np.ndarray | float, ydd: np.ndarray | float,
@@ -130,6 +125,11 @@ class TaskRows:
                 row += self.c1[r] * src[self.i1[r]]
             out[r] = self.c0[r] * row
         return out
+
+
+def _task_arrays(t: TaskRows) -> tuple[np.ndarray, ...]:
+    """The arrays of a task-row stack, in the condensation kernel's argument order."""
+    return (t.ri, t.rf, t.dense)
 
 
 class _Solver:
@@ -182,6 +182,8 @@ class _Solver:
         self._work = np.zeros((4 * n + 7, n))
         self._viol = np.zeros(ncon)
         self.max_steps = 100
+        self._as_args = (self.x_l, self.x_u, self._Gc, self.h_u, self._x, self._lam,
+                         self._iwork, self._work, self._viol)
         self.steps = 0  # active-set steps and active constraints of the last closed_form
         self.n_active = 0
 
@@ -211,9 +213,7 @@ class _Solver:
         (feasible within 1e-9, multipliers >= 0, stationary to rounding), so it is the
         optimum; otherwise (never seen on the OSC's QPs) piqp decides.
         """
-        status, steps, nact = solve_dual_active_set(
-            P, c, self.x_l, self.x_u, self._Gc, self.h_u, self._x, self._lam, self._iwork,
-            self._work, self._viol, 1e-9, self.max_steps)
+        status, steps, nact = solve_dual_active_set(P, c, *self._as_args, 1e-9, self.max_steps)
         self.steps, self.n_active = steps, nact
         return self._x if status == 1 else None
 
@@ -292,10 +292,20 @@ class OscQP:
         self.moment_weight = 0.0
         self.last_status = 0
         self._last: tuple[np.ndarray, np.ndarray, _Solver] | None = None
+        # the condensation kernel's array arguments (fixed objects, filled in place)
+        m = model
+        self._cargs = (m.Jh, m.Jh_dot_v, m.h, m.Jc, m.Jc_dot_v, m.J_com, self._qLD,
+                       self._qLDiagInv, self._M_rownnz, self._M_rowadr, self._M_colind,
+                       self._motor_dof, self._wts, self.u_prev, self.lam_prev, self.moment_rows,
+                       self.moment_target, self._buf)
+        self._task_args = _task_arrays(self.rows)
+        self._nargs = {n: (self._Sbuf[n], self._Gbuf[n], self._Pbuf[n], self._c[:n])
+                       for n in self._Pbuf}
         # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
         self._build(self.rows, self._rows_of(np.ones(ncp, dtype=bool))[0])
         _store(np.zeros(nmax), self._rows_of(np.ones(ncp, dtype=bool))[0], np.zeros(nu),
                np.zeros(ncp3), np.zeros(nu), np.zeros(ncp3))
+        _Solver(nu + 3, 1, np.ones(nu), 0.5, 1.0).closed_form(np.eye(nu + 3), np.ones(nu + 3))
 
     def solve(self, tasks: TaskRows, stance: np.ndarray, fz_min: float = 0.0,
               fz_max: np.ndarray | None = None) -> QpResult:
@@ -349,19 +359,14 @@ class OscQP:
     def _build(self, tasks: TaskRows, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The condensed (14) for the stance rows ``rows``: its (P, c), from the compiled
         kernel (buffers reused from tick to tick)."""
-        m = self.model
         n = self.nu + len(rows)
         P = self._Pbuf[n]
         c = self._c[:n]
-        wts = self._wts
         k = self.moment_count
-        wts[6] = self.moment_weight if k else 0.0
-        info = _condense(m.Jh, m.Jh_dot_v, m.h, m.Jc, m.Jc_dot_v, m.J_com, self._qLD,
-                         self._qLDiagInv, self._M_rownnz, self._M_rowadr, self._M_colind,
-                         self._motor_dof, rows, tasks.n, tasks.i0, tasks.c0, tasks.i1, tasks.c1,
-                         tasks.b, tasks.w, tasks.dense, wts, self.u_prev, self.lam_prev,
-                         self.moment_rows, self.moment_target, k, self._buf, self._Sbuf[n],
-                         self._Gbuf[n], P, c)
+        self._wts[6] = self.moment_weight if k else 0.0
+        # the arrays (fixed objects, filled in place) are gathered once: see __init__
+        targs = self._task_args if tasks is self.rows else _task_arrays(tasks)
+        info = _condense(*self._cargs, *targs, rows, tasks.n, k, *self._nargs[n])
         if info != 0:
             raise np.linalg.LinAlgError("holonomic Gram matrix not positive definite")
         return P, c
@@ -484,11 +489,10 @@ def _cholesky_solve(A: np.ndarray, B: np.ndarray, nb: int) -> int:
 def _condense(Jh: np.ndarray, Jh_dot_v: np.ndarray, h: np.ndarray, Jc: np.ndarray,
               Jc_dot_v: np.ndarray, J_com: np.ndarray, qLD: np.ndarray, qLDiagInv: np.ndarray,
               rownnz: np.ndarray, rowadr: np.ndarray, colind: np.ndarray, motor_dof: np.ndarray,
-              rows: np.ndarray, nt: int, ti0: np.ndarray, tc0: np.ndarray, ti1: np.ndarray,
-              tc1: np.ndarray, tb: np.ndarray, tw: np.ndarray, tdense: np.ndarray,
               wts: np.ndarray, u_prev: np.ndarray, lam_prev: np.ndarray,
-              moment_rows: np.ndarray, moment_target: np.ndarray, nmom: int, buf: np.ndarray,
-              S: np.ndarray, G: np.ndarray, P: np.ndarray, c: np.ndarray) -> int:
+              moment_rows: np.ndarray, moment_target: np.ndarray, buf: np.ndarray,
+              ri: np.ndarray, rf: np.ndarray, tdense: np.ndarray, rows: np.ndarray, nt: int,
+              nmom: int, S: np.ndarray, G: np.ndarray, P: np.ndarray, c: np.ndarray) -> int:
     """The condensed QP (14) over x = [u, lambda_c of the stance rows]: ``P`` and ``c`` of
     min 1/2 x'Px + c'x, with ``S`` (lambda_h = S [x; 1; 1], (nh, n + 2)) and ``G``
     (dv = G [x; 1; 1], (nv, n + 2)), both C-contiguous. ``buf`` is flat scratch. Products
@@ -566,7 +570,7 @@ def _condense(Jh: np.ndarray, Jh_dot_v: np.ndarray, h: np.ndarray, Jc: np.ndarra
     nsrc = 15 + nv
     for t in range(nt):  # task rows c0 (S[i0] + c1 S[i1])
         for q in range(2):
-            idx = ti0[t] if q == 0 else ti1[t]
+            idx = ri[t, q]
             dst = row if q == 0 else tmp
             if idx < 0:
                 continue
@@ -584,16 +588,17 @@ def _condense(Jh: np.ndarray, Jh_dot_v: np.ndarray, h: np.ndarray, Jc: np.ndarra
                     if dr[i] != 0.0:
                         for j in range(n + 2):
                             dst[j] += dr[i] * G[i, j]
-        if ti1[t] >= 0:
+        c0, c1 = rf[t, 0], rf[t, 1]
+        if ri[t, 1] >= 0:
             for j in range(n + 2):
-                row[j] = tc0[t] * (row[j] + tc1[t] * tmp[j])
+                row[j] = c0 * (row[j] + c1 * tmp[j])
         else:
             for j in range(n + 2):
-                row[j] = tc0[t] * row[j]
-        sw = math.sqrt(tw[t])
+                row[j] = c0 * row[j]
+        sw = math.sqrt(rf[t, 3])
         for j in range(n):
             Aw[na + t, j] = sw * row[j]
-        rw[na + t] = sw * (row[n] + row[n + 1] - tb[t])
+        rw[na + t] = sw * (row[n] + row[n + 1] - rf[t, 2])
     sw = math.sqrt(wts[1])
     for r in range(n3):  # soft contact (14d): Jc dv + Jdot_c v = eps
         a = SG[3 + rows[r]]

@@ -21,13 +21,11 @@ import numpy as np
 from .model import LEFT, RIGHT, CassieModel
 from .qp import OscQP, TaskRows
 from .tasks import (
-    PelvisOrientationTask,
+    DOUBLE_STANCE_TASKS,
+    SINGLE_STANCE_TASKS,
     TaskLog,
     WalkingParams,
-    add_com_task,
-    add_foot_pitch_task,
-    add_foot_position_task,
-    add_joint_task,
+    walking_rows,
 )
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -214,6 +212,10 @@ class SwingFootTrajectory:
         self._K = np.zeros((nc + 6 + 4, nc + 6 + 4))
         self._rhs = np.zeros((nc + 6 + 4, 3))
         self._out = np.zeros((3, 3))
+        # compile the kernels (or load them from numba's on-disk cache) now
+        _swing_eval(self.coef, 0.0, 1.0, self._out)
+        _swing_solve(self._Q2, np.zeros((nc, 3)), 0.0, 0.0, 1.0, np.zeros(3), self._wp, 1,
+                     self._K, self._rhs)
 
     def start(self, t: float, liftoff: float, touchdown: float, p_now: np.ndarray) -> None:
         """Begin a swing at the current foot position with zero velocity and acceleration."""
@@ -233,10 +235,15 @@ class SwingFootTrajectory:
         return np.array(pos), np.array(vel), np.array(acc)
 
     def evaluate_lists(self, t: float) -> list[list[float]]:
-        """``evaluate`` as three lists of floats [pos, vel, acc] (the per-tick path)."""
+        """``evaluate`` as three lists of floats [pos, vel, acc]."""
+        return self.evaluate_into(t).tolist()
+
+    def evaluate_into(self, t: float) -> np.ndarray:
+        """``evaluate`` into a (3, 3) array [pos; vel; acc] owned by this object (the per-tick
+        path: overwritten by the next call)."""
         tau = min(max((t - self.liftoff) / self.T, 0.0), 1.0)
         _swing_eval(self.coef, tau, self.T, self._out)
-        return self._out.tolist()
+        return self._out
 
     def update(self, t: float, touchdown: float, p_des: np.ndarray, clearance: float) -> None:
         """Re-solve (23) for the newest touchdown time and target, then advance to t."""
@@ -366,27 +373,11 @@ def _swing_solve(Q2: np.ndarray, coef: np.ndarray, tau_prev: float, tau_k: float
     return 0
 
 
-def _moment_row(row: np.ndarray, points: Any, idx: Any, about: Any,
-                axis: tuple[float, float, float]) -> None:
-    """Fill ``row`` (3 per contact point) with the moment along ``axis`` about ``about`` of
-    the forces at ``points[idx]``: axis . ((p_i - c) x f_i) = f_i . (axis x (p_i - c)).
-    ``points`` and ``about`` are sequences of floats (world)."""
-    vals = [0.0] * len(row)
-    ax, ay, az = axis
-    a0, a1, a2 = about
-    for i in idx:
-        p = points[i]
-        rx, ry, rz = p[0] - a0, p[1] - a1, p[2] - a2
-        vals[3 * i : 3 * i + 3] = (ay * rz - az * ry, az * rx - ax * rz, ax * ry - ay * rx)
-    row[:] = vals
-
-
 class WalkingController:
     """Task rows for one walking tick from the newest MPFC plan (Tables VI-VII, Section V)."""
 
     def __init__(self, params: WalkingParams, nv: int) -> None:
         self.p = params
-        self.pelvis = PelvisOrientationTask(nv)
         self.plane = ComHeightPlane(params)
         self.swing = SwingFootTrajectory(params.swing_degree,
                                          step_up_min=params.swing_step_up_min,
@@ -399,30 +390,38 @@ class WalkingController:
         self.phase: GaitPhase | None = None
         #: per-contact-point normal-force caps for the QP (inf: only the configured limit)
         self.fz_max = np.full(4, np.inf)
+        self._errs = np.zeros(len(SINGLE_STANCE_TASKS))
+        # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
+        kin, rows = np.zeros((20, 3)), np.zeros((16, 4))
+        kin[0:3] = np.eye(3)
+        kin[8:12] = ((0.1, 0.1, 0.0), (-0.1, 0.1, 0.0), (0.1, -0.1, 0.0), (-0.1, -0.1, 0.0))
+        g = [x.packed for x in (params.com, params.pelvis, params.swing_foot, params.toe,
+                                params.hip_yaw)]
+        walking_rows(kin, np.zeros(12), np.zeros(nv + 3), np.zeros(nv),
+                      np.zeros((16, 2), np.int64), rows, 0, self._errs, np.zeros((2, 12)), *g,
+                      0.8, 0.0, 0.0, 0.0, True, 0, np.zeros((3, 3)), 0.0, 0, 0, True, -1.0)
 
-    def _double_stance(self, qp: OscQP, m: CassieModel, plan: Any, t: float, stance: int,
-                       yaw: float) -> None:
+    def _double_stance(self, qp: OscQP, m: CassieModel, plan: Any, t: float,
+                       stance: int) -> float:
         """Weight transfer of the ALIP's double stance, f(t) = t / T_ds of (2) and (7): the
         trailing foot may carry at most (1 - f) m g, so it lifts off unloaded and its leaf
         springs do not ring through the swing (Section III-B), and the centre of pressure is
         pulled towards p_CoP(t) = p_- + f (p_+ - p_-) of (2), where the MPFC's reset map (9)
-        assumes it is."""
+        assumes it is. Sets the caps and the moment cost; returns f when the CoP moment rows
+        are wanted (``tasks.walking_rows`` writes them), else -1."""
         self.fz_max[:] = np.inf
         if int(plan.gait_state) not in (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT):
-            return  # a swing past its planned touchdown: both feet may carry the robot
+            return -1.0  # a swing past its planned touchdown: both feet may carry the robot
         t0, t1 = float(plan.prev_switch_time_s), float(plan.next_switch_time_s)
         f = min(max((t - t0) / (t1 - t0), 0.0), 1.0) if t1 > t0 else 1.0
         trail = 1 - stance
         self.fz_max[2 * trail : 2 * trail + 2] = 0.5 * (1.0 - f) * m.mass * 9.81  # 2 points
         if self.p.ankle_torque_weight > 0.0:
-            p_minus, p_plus = m.foot_center_l(trail), m.foot_center_l(stance)
-            cop = [p_minus[a] + f * (p_plus[a] - p_minus[a]) for a in range(3)]
-            c, s = math.cos(yaw), math.sin(yaw)
-            for r, axis in enumerate(((c, s, 0.0), (-s, c, 0.0))):
-                _moment_row(qp.moment_rows[r], m.p_contact_l, range(4), cop, axis)
-                qp.moment_target[r] = 0.0
+            qp.moment_target[0] = qp.moment_target[1] = 0.0
             qp.moment_count = 2
             qp.moment_weight = self.p.ankle_torque_weight
+            return f
+        return -1.0
 
     def reset(self) -> None:
         """Start a new walking episode: filters and swing plan from scratch."""
@@ -434,7 +433,8 @@ class WalkingController:
                   v: np.ndarray, t: float, plan: Any, ph: GaitPhase,
                   yaw_rate: float) -> np.ndarray:
         """Append the walking tasks for the plan's phase ``ph`` (``GaitPhase.from_plan``);
-        return the stance-point mask."""
+        return the stance-point mask. The references are computed here, the rows by the
+        compiled ``tasks.walking_rows``."""
         p = self.p
         self.phase = ph
         st = ph.stance
@@ -445,16 +445,18 @@ class WalkingController:
 
         # CoM height on the footstep plane (21)-(22), z only (Table VII weights x, y = 0).
         z, zd, kx = self.plane.reference(t, stance_pos, next_pos, yaw, m.com_l, m.com_vel_l)
-        c, cv = m.com_l, m.com_vel_l
-        add_com_task(rows, log, m, p.com, [c[0], c[1], z], [cv[0], cv[1], zd], self._zero3)
-
-        # Pelvis roll/pitch to zero and the commanded yaw rate (Section V-C).
-        self.pelvis.add(rows, log, m, v, p.pelvis, m.pelvis_yaw(), yaw_rate)
 
         qp.moment_count = 0
         if not ph.single_stance:
             self._swing_key = None
-            self._double_stance(qp, m, plan, t, st, yaw)
+            cop_f = self._double_stance(qp, m, plan, t, st)
+            rows.n = walking_rows(m.kin, m.Jc_dot_v, q, v, rows.ri, rows.rf, rows.n,
+                                   self._errs, qp.moment_rows, p.com.packed, p.pelvis.packed,
+                                   p.swing_foot.packed, p.toe.packed, p.hip_yaw.packed, z, zd,
+                                   yaw_rate, yaw, False, st, self.swing._out, 0.0, 0, 0, False,
+                                   cop_f)
+            log.names.extend(DOUBLE_STANCE_TASKS)
+            log.errors.extend(self._errs[:2].tolist())
             return _STANCE_MASKS[None]
         self.fz_max[:] = np.inf
 
@@ -464,25 +466,25 @@ class WalkingController:
             self._swing_key = key
             self.swing.start(t, ph.liftoff_s, ph.touchdown_s, m.foot_center(sw))
         self.swing.update(t, ph.touchdown_s, np.array(next_pos), p.swing_clearance)
-        pos, vel, acc = self.swing.evaluate_lists(t)
-        add_foot_position_task(rows, log, m, sw, p.swing_foot, pos, vel, acc)
+        ref = self.swing.evaluate_into(t)
         # Swing toe: foot at atan(k_x) to the horizontal (Section V-C), or level ("level": on
         # level footholds, where atan(k_x) would land the heel first, L/2 sin(atan k_x) ~ 3 cm
         # below the foot's centre on 15 cm stairs); swing hip yaw at zero (Section V-C).
         toe = math.atan(kx) if p.swing_toe == "plane" else 0.0
-        add_foot_pitch_task(rows, log, m, sw, p.toe, toe)
-        add_joint_task(rows, log, m, q, v, int(m.hip_yaw_qpos[sw]), int(m.hip_yaw_dof[sw]),
-                       p.hip_yaw, 0.0, "swing_hip_yaw")
-
         # Ankle torque cost (Section V-D). The MPFC's u is the torque the ground applies to
         # the robot about the stance contact point, along the stance frame's y axis: the ALIP
         # state is about that point, so u = 0 must put the centre of pressure there (a cost
         # on the toe motor instead would put it under the toe joint, ~2 cm along the blade,
         # and push the robot forward every step).
-        if p.ankle_torque_weight > 0.0:
-            ey = (-math.sin(yaw), math.cos(yaw), 0.0)
-            _moment_row(qp.moment_rows[0], m.p_contact_l, (2 * st, 2 * st + 1),
-                        m.foot_center_l(st), ey)
+        ankle = p.ankle_torque_weight > 0.0
+        rows.n = walking_rows(m.kin, m.Jc_dot_v, q, v, rows.ri, rows.rf, rows.n, self._errs,
+                               qp.moment_rows, p.com.packed, p.pelvis.packed,
+                               p.swing_foot.packed, p.toe.packed, p.hip_yaw.packed, z, zd,
+                               yaw_rate, yaw, True, st, ref, toe, int(m.hip_yaw_qpos[sw]),
+                               int(m.hip_yaw_dof[sw]), ankle, -1.0)
+        log.names.extend(SINGLE_STANCE_TASKS)
+        log.errors.extend(self._errs.tolist())
+        if ankle:
             qp.moment_target[0] = float(plan.ankle_torque)
             qp.moment_count = 1
             qp.moment_weight = p.ankle_torque_weight

@@ -3,6 +3,8 @@ MuJoCo's own functions and dense numpy algebra: a dropped or wrong term fails th
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -295,3 +297,113 @@ def test_compiled_swing_solve_matches_dense_kkt_of_23():
             np.testing.assert_allclose(pos, B[0], atol=1e-12)
             np.testing.assert_allclose(vel, B[1] / traj.T, atol=1e-10)
             np.testing.assert_allclose(acc, B[2] / traj.T**2, atol=1e-8)
+
+
+def _capture(monkeypatch, module, name: str) -> list:
+    """Record the arguments of every call of a module's compiled kernel (still calling it)."""
+    calls: list = []
+    kernel = getattr(module, name)
+
+    def spy(*args):
+        calls.append([a.copy() if isinstance(a, np.ndarray) else a for a in args])
+        return kernel(*args)
+
+    monkeypatch.setattr(module, name, spy)
+    return calls
+
+
+def _rows_equal(rows, ref, log_errors: list[float], ref_log) -> None:
+    n = ref.n
+    assert rows.n == n
+    np.testing.assert_array_equal(rows.ri[:n], ref.ri[:n])
+    np.testing.assert_allclose(rows.rf[:n], ref.rf[:n], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(log_errors, ref_log.errors, rtol=1e-12, atol=1e-15)
+
+
+def test_compiled_task_rows_match_the_python_reference_tasks(q_stand, monkeypatch):
+    """Standing, single and double stance ticks at moving states: the compiled walking and
+    standing rows (J sources, coefficients, b, w), task errors and contact-moment rows are
+    those of the straightforward Python tasks (tests/osc/reference_tasks.py) on the same
+    references."""
+    from processes.osc import standing, walking
+    from processes.osc.controller import OscController
+    from processes.osc.qp import TaskRows
+    from processes.osc.walking import DOUBLE_AFTER_LEFT, SINGLE_LEFT
+
+    from . import reference_tasks as ref
+    from .test_qp import _Cmd, _Plan
+
+    st_calls = _capture(monkeypatch, standing, "standing_rows")
+    wk_calls = _capture(monkeypatch, walking, "walking_rows")
+    osc = OscController()
+    m, p = osc.model, osc.params
+    rng = np.random.default_rng(9)
+    checked = {"standing": 0, "single": 0, "double": 0}
+    for k in range(9):
+        v = rng.normal(scale=0.4, size=32)
+        q = q_stand.copy()
+        q[7:] += rng.normal(scale=0.02, size=len(q) - 7)
+        cm = m
+        if k < 3:
+            osc.update(0.001 * k, q, v)
+        else:
+            st = cm.p_contact[0:2].mean(axis=0)
+            nxt = cm.p_contact[2:4].mean(axis=0) + np.array([0.12, 0.0, 0.03])
+            if k < 6:  # weight transfer onto the left foot, CoP rows
+                plan = _Plan(DOUBLE_AFTER_LEFT, 0.0, 0.05, st, nxt)
+                plan.ankle_torque = 0.0
+            else:
+                plan = _Plan(SINGLE_LEFT, 0.01, 0.31, st, nxt)
+            cmd = _Cmd()
+            cmd.yaw_rate = 0.3  # turning: the pelvis rows' yaw-rate term is not zero
+            osc.update(0.002 * k, q, v, plan, cmd)
+        rows, log = osc.rows, osc.log
+        want, want_log = TaskRows(cm.nv), ref.TaskLog()
+        if k < 3:
+            a = st_calls[-1]
+            x, y, z, yaw, hip_des = a[10], a[11], a[12], a[13], a[16]
+            ref.add_com_task(want, want_log, cm, p.standing.com, [x, y, z], [0.0] * 3,
+                             [0.0] * 3)
+            ref.PelvisOrientationTask(cm.nv).add(want, want_log, cm, v, p.standing.pelvis, yaw,
+                                                 0.0)
+            for side in range(2):
+                ref.add_joint_task(want, want_log, cm, q, v, int(cm.hip_yaw_qpos[side]),
+                                   int(cm.hip_yaw_dof[side]), p.standing.hip_yaw,
+                                   float(hip_des[side]), "hip_yaw")
+            _rows_equal(rows, want, log.errors, want_log)
+            checked["standing"] += 1
+            continue
+        assert osc.mode == 0, osc.debug.status
+        a = wk_calls[-1]
+        moment_rows = a[8]  # as the kernel received them; it wrote osc.qp.moment_rows
+        z, zd, yaw_rate, yaw, single, stance = a[14], a[15], a[16], a[17], a[18], a[19]
+        swing_ref, toe, hip_q, hip_d, ankle, cop_f = a[20], a[21], a[22], a[23], a[24], a[25]
+        w = p.walking
+        c, cv = cm.com_l, cm.com_vel_l
+        ref.add_com_task(want, want_log, cm, w.com, [c[0], c[1], z], [cv[0], cv[1], zd],
+                         [0.0] * 3)
+        ref.PelvisOrientationTask(cm.nv).add(want, want_log, cm, v, w.pelvis, cm.pelvis_yaw(),
+                                             yaw_rate)
+        want_moment = moment_rows.copy()
+        sw = 1 - stance
+        if single:
+            ref.add_foot_position_task(want, want_log, cm, sw, w.swing_foot,
+                                       *swing_ref.tolist())
+            ref.add_foot_pitch_task(want, want_log, cm, sw, w.toe, toe)
+            ref.add_joint_task(want, want_log, cm, q, v, hip_q, hip_d, w.hip_yaw, 0.0, "hip")
+            assert ankle
+            centre = cm.foot_center(stance).tolist()
+            ref.moment_row(want_moment[0], cm.p_contact_l, (2 * stance, 2 * stance + 1),
+                           centre, (-math.sin(yaw), math.cos(yaw), 0.0))
+            checked["single"] += 1
+        else:
+            assert cop_f >= 0.0
+            pm, pp = cm.foot_center(sw), cm.foot_center(stance)
+            cop = (pm + cop_f * (pp - pm)).tolist()
+            cy, sy = math.cos(yaw), math.sin(yaw)
+            ref.moment_row(want_moment[0], cm.p_contact_l, range(4), cop, (cy, sy, 0.0))
+            ref.moment_row(want_moment[1], cm.p_contact_l, range(4), cop, (-sy, cy, 0.0))
+            checked["double"] += 1
+        _rows_equal(rows, want, log.errors, want_log)
+        np.testing.assert_allclose(osc.qp.moment_rows, want_moment, rtol=1e-14, atol=1e-15)
+    assert checked == {"standing": 3, "single": 3, "double": 3}
