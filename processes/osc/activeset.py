@@ -63,11 +63,14 @@ def _violations(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, A: np.ndarray, b:
 @_jit
 def _normal(j: int, n: int, A: np.ndarray, out: np.ndarray) -> None:
     """The normal a_j of constraint j (written as a_j x <= b_j)."""
+    # explicit loops, here and below: slice assignments make numba compile far longer
     if j < 2 * n:
-        out[:] = 0.0
+        for i in range(n):
+            out[i] = 0.0
         out[j % n] = -1.0 if j < n else 1.0
     else:
-        out[:] = A[j - 2 * n]
+        for i in range(n):
+            out[i] = A[j - 2 * n, i]
 
 
 @_jit
@@ -106,7 +109,8 @@ def _project(U: np.ndarray, m: int, q: np.ndarray, coef: np.ndarray, w: np.ndarr
     """w = q minus its projection on the rows U[:m] (orthonormal), coef = U q; Gram-Schmidt
     twice, so w is orthogonal to working precision."""
     n = q.size
-    w[:] = q
+    for k in range(n):
+        w[k] = q[k]
     for i in range(m):
         coef[i] = 0.0
     for _ in range(2):
@@ -252,7 +256,8 @@ def solve_dual_active_set(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.n
             for i in range(kdrop, m - 1):
                 active[i] = active[i + 1]
                 lam[i] = lam[i + 1]
-                Qa[i] = Qa[i + 1]
+                for k in range(n):
+                    Qa[i, k] = Qa[i + 1, k]
             m -= 1
             if not _refactor(Qa, m, U, T, coef, w):
                 return 0, steps, m

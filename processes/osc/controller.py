@@ -10,6 +10,7 @@ joint limits.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -25,6 +26,8 @@ from .standing import StandingController
 from .tasks import OscParams, TaskLog
 from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, GaitPhase, WalkingController
 from .walking import STANDING as GAIT_STANDING
+
+log = logging.getLogger(__name__)
 
 WALKING, STANDING, SAFE = 0, 1, 2
 MODE_NAMES = {WALKING: "walking", STANDING: "standing", SAFE: "safe"}
@@ -70,6 +73,7 @@ class OscController:
 
     def __init__(self, params: OscParams | None = None, model: CassieModel | None = None,
                  gains_file: str | Path | None = None) -> None:
+        t_setup = time.perf_counter()
         self.params = params if params is not None else OscParams.from_yaml(gains_file)
         self.model = model if model is not None else CassieModel()
         m = self.model
@@ -92,6 +96,9 @@ class OscController:
         self._spring_idx = [(*(int(i) for i in m.spring_qpos[2 * s : 2 * s + 2]),
                              *(int(i) for i in m.spring_dof[2 * s : 2 * s + 2])) for s in (0, 1)]
         self._u_min = -m.u_max
+        if (setup_s := time.perf_counter() - t_setup) > 3.0:
+            log.info("OSC set up in %.1f s: numba compiled its kernels (first start on this "
+                     "machine or after a code change; cached in __pycache__ from now)", setup_s)
 
     # ------------------------------------------------------------------ public
     def reset(self) -> None:

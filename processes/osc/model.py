@@ -260,13 +260,15 @@ def _point_jac(topo: np.ndarray, body: int, p: np.ndarray, subtree_com: np.ndarr
     """Translational Jacobian ``J`` (3, nv) of world point ``p`` fixed to ``body``, and, when
     ``jdv`` is given, ``Jdot v`` (3): MuJoCo's ``mj_jac`` and ``mj_jacDot`` (engine_core_util.c),
     a backward pass over the dof ancestor chain with ``cdof``, ``cdof_dot`` and ``cvel``."""
-    J[:] = 0.0
+    for a in range(3):  # (explicit loops: slice assignments make numba compile far longer)
+        for i in range(J.shape[1]):
+            J[a, i] = 0.0
     root = topo[0, body]
     o0 = p[0] - subtree_com[root, 0]
     o1 = p[1] - subtree_com[root, 1]
     o2 = p[2] - subtree_com[root, 2]
     if jdv is not None:
-        jdv[:] = 0.0
+        jdv[0] = jdv[1] = jdv[2] = 0.0
         # point velocity (mju_transformSpatial of the body's cvel to p): lin - (p - com) x ang
         cv = cvel[body]
         pv0 = cv[3] - (o1 * cv[2] - o2 * cv[1])
@@ -387,7 +389,9 @@ def _kinematics(topo: np.ndarray, cfg: np.ndarray, v: np.ndarray, xpos: np.ndarr
                 s += Jp[2 * ne + n, a, i] * v[i]
             small[12 + n, a] = s
     # Centre of mass: mj_jacSubtreeCom (mass-weighted Jacobians of the subtree's body CoMs)
-    J_com[:] = 0.0
+    for a in range(3):
+        for i in range(nv):
+            J_com[a, i] = 0.0
     jb = np.empty((3, nv))
     for b in range(pelvis, nb):
         if b > pelvis and topo[4, b] < pelvis:

@@ -417,7 +417,8 @@ def moment_row(kin: np.ndarray, row: np.ndarray, first: int, last: int, about: n
                ax: float, ay: float, az: float) -> None:
     """``row`` (3 per contact point) = the moment along (ax, ay, az) about ``about`` of the
     forces at contact points first..last: axis . ((p_i - c) x f_i) = f_i . (axis x (p_i - c))."""
-    row[:] = 0.0
+    for i in range(row.size):
+        row[i] = 0.0
     for i in range(first, last + 1):
         p = kin[KIN_P_CONTACT + i]
         rx, ry, rz = p[0] - about[0], p[1] - about[1], p[2] - about[2]
@@ -441,7 +442,8 @@ def standing_rows(kin: np.ndarray, q: np.ndarray, v: np.ndarray, ri: np.ndarray,
                   hip_des: np.ndarray) -> int:
     """The standing task rows of one tick (Table VI, the rows above): CoM at (x, y, z) at
     rest, pelvis level at ``yaw``, both hip yaws held at ``hip_des``."""
-    pos = np.array((x, y, z))
+    pos = np.empty(3)
+    pos[0], pos[1], pos[2] = x, y, z
     zero = np.zeros(3)
     n = com_rows(kin, g_com, pos, zero, zero, ri, rf, n, errs, 0)
     n = pelvis_rows(kin, v, g_pelvis, yaw, 0.0, ri, rf, n, errs, 1)
@@ -477,8 +479,10 @@ def walking_rows(kin: np.ndarray, jc_dot_v: np.ndarray, q: np.ndarray, v: np.nda
     c = kin[KIN_COM]
     cv = kin[KIN_COM_VEL]
     zero = np.zeros(3)
-    n = com_rows(kin, g_com, np.array((c[0], c[1], z)), np.array((cv[0], cv[1], zd)), zero,
-                 ri, rf, n, errs, 0)
+    pos, vel = np.empty(3), np.empty(3)
+    pos[0], pos[1], pos[2] = c[0], c[1], z
+    vel[0], vel[1], vel[2] = cv[0], cv[1], zd
+    n = com_rows(kin, g_com, pos, vel, zero, ri, rf, n, errs, 0)
     pelvis_yaw = math.atan2(kin[KIN_R + 1, 0], kin[KIN_R, 0])
     n = pelvis_rows(kin, v, g_pelvis, pelvis_yaw, yaw_rate, ri, rf, n, errs, 1)
     sw = 1 - stance

@@ -318,24 +318,32 @@ def _swing_solve(Q2: np.ndarray, coef: np.ndarray, tau_prev: float, tau_k: float
         for a in range(3):
             for i in range(nc):
                 prev[d, a] += row[i] * coef[i, a]
-    K[:, :] = 0.0
-    rhs[:, :] = 0.0
-    K[:nc, :nc] = Q2
+    # (explicit loops: slice assignments make numba compile far longer)
+    for i in range(N):
+        for j in range(N):
+            K[i, j] = Q2[i, j] if i < nc and j < nc else 0.0
+        for a in range(3):
+            rhs[i, a] = 0.0
     for d in range(3):  # p(1) = p_des, p'(1) = p''(1) = 0
         _basis_row(1.0, d, row)
-        K[nc + d, :nc] = row
+        for j in range(nc):
+            K[nc + d, j] = row[j]
     for w in range(nwp):
         _basis_row(wp[w, 0], 0, row)
-        K[nc + 3 + w, :nc] = row
-        rhs[nc + 3 + w] = wp[w, 1:]
+        for j in range(nc):
+            K[nc + 3 + w, j] = row[j]
+        for a in range(3):
+            rhs[nc + 3 + w, a] = wp[w, 1 + a]
     r = nc + 3 + nwp
     for d in range(3):
         _basis_row(tau_k, d, row)
-        K[r + d, :nc] = row
+        for j in range(nc):
+            K[r + d, j] = row[j]
     for i in range(nc, N):
         for j in range(nc):
             K[j, i] = K[i, j]
-    rhs[nc] = p_des
+    for a in range(3):
+        rhs[nc, a] = p_des[a]
     f = 1.0
     for d in range(3):
         for a in range(3):
@@ -369,7 +377,9 @@ def _swing_solve(Q2: np.ndarray, coef: np.ndarray, tau_prev: float, tau_k: float
             for j in range(i + 1, N):
                 t -= K[i, j] * rhs[j, a]
             rhs[i, a] = t / K[i, i]
-    coef[:, :] = rhs[:nc]
+    for i in range(nc):
+        for a in range(3):
+            coef[i, a] = rhs[i, a]
     return 0
 
 

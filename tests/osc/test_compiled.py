@@ -407,3 +407,32 @@ def test_compiled_task_rows_match_the_python_reference_tasks(q_stand, monkeypatc
         _rows_equal(rows, want, log.errors, want_log)
         np.testing.assert_allclose(osc.qp.moment_rows, want_moment, rtol=1e-14, atol=1e-15)
     assert checked == {"standing": 3, "single": 3, "double": 3}
+
+
+def test_no_kernel_compiles_on_a_tick(q_stand):
+    """Every compiled kernel is compiled (or loaded from numba's cache) when the controller
+    is built: a tick that met a new argument type would stall for seconds to compile."""
+    import numba
+
+    from processes.osc import activeset, controller, model, qp, safety, standing, tasks, walking
+    from processes.osc.walking import DOUBLE_AFTER_LEFT, SINGLE_LEFT
+
+    from .test_qp import _Cmd, _Plan
+
+    def signatures() -> dict[str, int]:
+        out = {}
+        for mod in (activeset, model, qp, safety, standing, tasks, walking):
+            for name, obj in vars(mod).items():
+                if isinstance(obj, numba.core.registry.CPUDispatcher):
+                    out[f"{mod.__name__}.{name}"] = len(obj.signatures)
+        return out
+
+    osc = controller.OscController()
+    before = signatures()
+    cm = osc.model
+    osc.update(0.0, q_stand, np.zeros(32))
+    st, nxt = cm.p_contact[0:2].mean(axis=0), cm.p_contact[2:4].mean(axis=0)
+    osc.update(0.005, q_stand, np.zeros(32), _Plan(DOUBLE_AFTER_LEFT, 0.0, 0.3, st, nxt), _Cmd())
+    osc.update(0.01, q_stand, np.zeros(32), _Plan(SINGLE_LEFT, 0.0, 0.3, st, nxt), _Cmd())
+    assert osc.mode == 0
+    assert signatures() == before
