@@ -1,14 +1,15 @@
-"""The condensed OSC quadratic program (14), solved with piqp's dense interior-point solver.
+"""The condensed OSC quadratic program (14), solved exactly by a compiled active-set method.
 
 (14) is posed over (dv, u, lambda_h, lambda_c, eps). Here dv, lambda_h and eps are eliminated:
 the dynamics (14b) with the holonomic rows (14c) give ``dv = G x + g0`` for the remaining
 decision vector ``x = [u (10), lambda_c (3 per stance point)]``; the soft contact constraint
 (14d) becomes a weighted residual (its slack ``eps`` is that residual). What is left is a QP
 with at most 22 variables: box bounds for (14f) and the normal-force sign, and a linearised
-friction pyramid for (14e). piqp has no warm start; the problem is set up once per contact
-count and only ``update``-d afterwards. It is the last resort: first a compiled dual
-active-set method (``activeset``) finds the exact optimum, accepted only when it satisfies
-the KKT conditions of the whole QP; then piqp is skipped (iterations reported as 0).
+friction pyramid for (14e). A compiled dual active-set method (``activeset``) finds its
+exact optimum, accepted only when it satisfies the KKT conditions of the whole QP (piqp is
+then skipped: iterations reported as 0). piqp's dense interior-point solver is the last
+resort when that certificate fails; it has no warm start, so it is set up once per contact
+count and only ``update``-d afterwards.
 
 The condensation (M^-1 through MuJoCo's sparse factor, the holonomic Schur complement, every
 cost row as an affine function of x, the cost's P and c) is one compiled kernel (numba,

@@ -2,7 +2,9 @@
 
 Every task turns a desired output (position, velocity, feed-forward acceleration) into rows of
 ``J dv + Jdot v ~= ydd_cmd`` with ``ydd_cmd = ydd_des + Kp (y_des - y) + Kd (yd_des - yd)``
-(Section III-E) and appends them to a ``TaskRows`` stack with its weights ``W``.
+(Section III-E) and appends them to a ``TaskRows`` stack with its weights ``W``. The rows are
+compiled (numba): one kernel per tick writes all of a mode's tasks (``walking_rows``,
+``standing_rows``); the controllers compute their references in Python.
 """
 
 from __future__ import annotations

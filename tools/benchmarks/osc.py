@@ -11,7 +11,8 @@ loop does. Figures are printed and optionally written as flat JSON; nothing is a
 (``processes/osc`` and ``hw_config/gains/osc.yaml`` extracted with ``git archive`` into a
 temporary folder and imported from there), in repeats interleaved with this tree's so both
 see the same machine load, and prints both side by side with their ratio and the largest
-difference between the two versions' torques.
+difference between the two versions' torques. ``--optimality`` checks (untimed) each QP
+answer against the same QP's optimum from a tightly converged piqp.
 """
 
 from __future__ import annotations
@@ -248,6 +249,102 @@ def side_by_side(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, 
     return out
 
 
+def _tight_optimum(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                   G: np.ndarray) -> np.ndarray | None:
+    """The QP min 1/2 x'Px + c'x, lo <= x <= hi, G x <= 0 by piqp converged to 1e-11 (None
+    when it does not get there)."""
+    import piqp
+
+    s = piqp.DenseSolver()
+    st = s.settings
+    st.eps_abs = st.eps_rel = st.eps_duality_gap_abs = st.eps_duality_gap_rel = 1e-11
+    st.max_iter = 500
+    st.verbose = False
+    s.setup(np.asfortranarray(P), c, None, None, np.asfortranarray(G), np.full(len(G), -np.inf),
+            np.zeros(len(G)), lo, hi)
+    return s.result.x.copy() if s.solve().value == 1 else None
+
+
+def _gap(P: np.ndarray, c: np.ndarray, x: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    """(largest torque difference N m, cost excess relative to the reference's cost)."""
+    cost, cost_ref = 0.5 * x @ P @ x + c @ x, 0.5 * ref @ P @ ref + c @ ref
+    return float(np.abs(x[:10] - ref[:10]).max()), float((cost - cost_ref) / abs(cost_ref))
+
+
+def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, Any]]],
+               baseline: Callable[[], Any] | None) -> dict[str, Any]:
+    """Untimed: each QP answer against the optimum of the same QP found by a tightly
+    converged piqp (1e-11). This tree: every tick (its ``OscQP.last_problem``). Baseline: the
+    ticks it sent to piqp (its ``_Solver.solve`` is wrapped to record the problem), when its
+    code has that shape. Torque differences and relative cost excess (< 0: cheaper than
+    piqp's optimum, i.e. piqp stopped short)."""
+    import importlib
+
+    from processes.osc.controller import SAFE, OscController
+
+    out: dict[str, Any] = {}
+    rows: list[tuple[str, object]] = []
+    for kind, states in runs.items():
+        osc = OscController()
+        du, ex = [], []
+        for t, q, v, plan, cmd in states:
+            _, dbg = osc.update(t, q, v, plan, cmd)
+            if dbg.mode == SAFE or dbg.qp_status != 1:
+                continue
+            P, c, lo, hi, G = osc.qp.last_problem()
+            ref = _tight_optimum(P, c, lo, hi, G)
+            if ref is not None:
+                x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
+                d, e = _gap(P, c, x, ref)
+                du.append(d)
+                ex.append(e)
+        out[f"{kind}_this_vs_optimum_ticks"] = len(du)
+        out[f"{kind}_this_vs_optimum_torque_max_nm"] = float(max(du, default=0.0))
+        out[f"{kind}_this_vs_optimum_cost_excess_max_ratio"] = float(max(ex, default=0.0))
+        rows.append((f"{kind} this tree, {len(du)} ticks: max |u - u*| (N m), cost excess",
+                     f"{out[f'{kind}_this_vs_optimum_torque_max_nm']:.2e}, "
+                     f"{out[f'{kind}_this_vs_optimum_cost_excess_max_ratio']:.1e}"))
+        if baseline is None:
+            continue
+        try:
+            bqp = importlib.import_module("baseline_osc.qp")
+            solve = bqp._Solver.solve
+        except (ImportError, AttributeError):
+            continue  # another code shape: nothing to hook
+        seen: list[tuple[np.ndarray, ...]] = []
+
+        def hooked(self: Any, P: np.ndarray, c: np.ndarray, _solve: Any = solve,
+                   _seen: list = seen) -> Any:
+            status, iters, x = _solve(self, P, c)
+            if status == 1:
+                _seen.append((np.array(P), c.copy(), self.x_l.copy(), self.x_u.copy(),
+                              np.array(self.G), x.copy()))
+            return status, iters, x
+
+        bqp._Solver.solve = hooked
+        try:
+            _replay(states, baseline)
+        finally:
+            bqp._Solver.solve = solve
+        du, ex = [], []
+        for P, c, lo, hi, G, x in seen:
+            ref = _tight_optimum(P, c, lo, hi, G)
+            if ref is not None:
+                d, e = _gap(P, c, x, ref)
+                du.append(d)
+                ex.append(e)
+        out[f"{kind}_baseline_piqp_vs_optimum_ticks"] = len(du)
+        if du:
+            out[f"{kind}_baseline_piqp_vs_optimum_torque_median_nm"] = float(np.median(du))
+            out[f"{kind}_baseline_piqp_vs_optimum_torque_max_nm"] = float(max(du))
+            out[f"{kind}_baseline_piqp_vs_optimum_cost_excess_max_ratio"] = float(max(ex))
+            rows.append((f"{kind} baseline piqp, {len(du)} ticks: |u - u*| median / max (N m),"
+                         " cost excess max",
+                         f"{np.median(du):.2e} / {max(du):.2e}, {max(ex):.1e}"))
+    print_table("QP answers against the QP's optimum (piqp converged to 1e-11), untimed", rows)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Record standing and walking states, replay them, print and optionally save figures."""
     ap = argparse.ArgumentParser(prog="cassie bench osc", description=__doc__)
@@ -259,6 +356,10 @@ def main(argv: list[str] | None = None) -> int:
                          "interleaved with this tree's, and compare their torques")
     ap.add_argument("--repeats", type=int, default=3,
                     help="interleaved repeats of each version with --baseline (default 3)")
+    ap.add_argument("--optimality", action="store_true",
+                    help="also check (untimed) every QP answer against the optimum of the "
+                         "same QP from a tightly converged piqp, this tree's and, with "
+                         "--baseline, the baseline's piqp answers")
     args = ap.parse_args(argv)
 
     baseline = baseline_controller(args.baseline) if args.baseline else None  # fail early
@@ -292,6 +393,8 @@ def main(argv: list[str] | None = None) -> int:
         figures["load_average_1min_end"] = os.getloadavg()[0]
         print(f"\nload average (1 min): {figures['load_average_1min_start']:.2f} at the start, "
               f"{figures['load_average_1min_end']:.2f} at the end")
+    if args.optimality:
+        figures.update(optimality(runs, baseline))
     write_json(args.json, "osc", figures)
     return 0
 
