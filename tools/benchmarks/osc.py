@@ -265,6 +265,27 @@ def _tight_optimum(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     return s.result.x.copy() if s.solve().value == 1 else None
 
 
+def _kkt(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray, G: np.ndarray,
+         x: np.ndarray) -> float:
+    """Stationarity residual of x, relative to the size of its terms: P x + c + A' lam with
+    lam >= 0 of the constraints active at x (within 1e-7) from non-negative least squares
+    (0 at an exact optimum, up to rounding)."""
+    from scipy.optimize import nnls
+
+    n = len(x)
+    eye = np.eye(n)
+    act = [-eye[i] for i in range(n) if x[i] - lo[i] < 1e-7]
+    act += [eye[i] for i in range(n) if hi[i] - x[i] < 1e-7]
+    act += [g for g in G if g @ x > -1e-7]
+    grad = P @ x + c
+    scale = float((np.abs(P) @ np.abs(x) + np.abs(c)).max())
+    if act:
+        A = np.array(act)
+        lam, _ = nnls(A.T, -grad)
+        grad = grad + A.T @ lam
+    return float(np.abs(grad).max()) / scale
+
+
 def _gap(P: np.ndarray, c: np.ndarray, x: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
     """(largest torque difference N m, cost excess relative to the reference's cost)."""
     cost, cost_ref = 0.5 * x @ P @ x + c @ x, 0.5 * ref @ P @ ref + c @ ref
@@ -286,24 +307,31 @@ def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, An
     rows: list[tuple[str, object]] = []
     for kind, states in runs.items():
         osc = OscController()
-        du, ex = [], []
+        du, ex, kkt, kkt_ref = [], [], [], []
         for t, q, v, plan, cmd in states:
             _, dbg = osc.update(t, q, v, plan, cmd)
             if dbg.mode == SAFE or dbg.qp_status != 1:
                 continue
             P, c, lo, hi, G = osc.qp.last_problem()
+            x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
+            kkt.append(_kkt(P, c, lo, hi, G, x))
             ref = _tight_optimum(P, c, lo, hi, G)
             if ref is not None:
-                x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
                 d, e = _gap(P, c, x, ref)
                 du.append(d)
                 ex.append(e)
+                kkt_ref.append(_kkt(P, c, lo, hi, G, ref))
         out[f"{kind}_this_vs_optimum_ticks"] = len(du)
         out[f"{kind}_this_vs_optimum_torque_max_nm"] = float(max(du, default=0.0))
         out[f"{kind}_this_vs_optimum_cost_excess_max_ratio"] = float(max(ex, default=0.0))
+        out[f"{kind}_this_kkt_residual_max_ratio"] = float(max(kkt, default=0.0))
+        out[f"{kind}_tight_piqp_kkt_residual_max_ratio"] = float(max(kkt_ref, default=0.0))
         rows.append((f"{kind} this tree, {len(du)} ticks: max |u - u*| (N m), cost excess",
                      f"{out[f'{kind}_this_vs_optimum_torque_max_nm']:.2e}, "
                      f"{out[f'{kind}_this_vs_optimum_cost_excess_max_ratio']:.1e}"))
+        rows.append((f"{kind} KKT residual max: this tree / tight piqp",
+                     f"{out[f'{kind}_this_kkt_residual_max_ratio']:.1e} / "
+                     f"{out[f'{kind}_tight_piqp_kkt_residual_max_ratio']:.1e}"))
         if baseline is None:
             continue
         try:
@@ -326,8 +354,9 @@ def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, An
             _replay(states, baseline)
         finally:
             bqp._Solver.solve = solve
-        du, ex = [], []
+        du, ex, kkt = [], [], []
         for P, c, lo, hi, G, x in seen:
+            kkt.append(_kkt(P, c, lo, hi, G, x))
             ref = _tight_optimum(P, c, lo, hi, G)
             if ref is not None:
                 d, e = _gap(P, c, x, ref)
@@ -338,9 +367,10 @@ def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, An
             out[f"{kind}_baseline_piqp_vs_optimum_torque_median_nm"] = float(np.median(du))
             out[f"{kind}_baseline_piqp_vs_optimum_torque_max_nm"] = float(max(du))
             out[f"{kind}_baseline_piqp_vs_optimum_cost_excess_max_ratio"] = float(max(ex))
+            out[f"{kind}_baseline_piqp_kkt_residual_max_ratio"] = float(max(kkt))
             rows.append((f"{kind} baseline piqp, {len(du)} ticks: |u - u*| median / max (N m),"
-                         " cost excess max",
-                         f"{np.median(du):.2e} / {max(du):.2e}, {max(ex):.1e}"))
+                         " cost excess max, KKT residual max",
+                         f"{np.median(du):.2e} / {max(du):.2e}, {max(ex):.1e}, {max(kkt):.1e}"))
     print_table("QP answers against the QP's optimum (piqp converged to 1e-11), untimed", rows)
     return out
 
