@@ -222,6 +222,14 @@ def side_by_side(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, 
             du[~base_piqp].max()) if (~base_piqp).any() else 0.0
         out[f"{kind}_torque_diff_max_baseline_piqp_ticks_nm"] = float(
             du[base_piqp].max()) if base_piqp.any() else 0.0
+        # before the baseline's first piqp tick, both solve the same QPs exactly: the floor
+        # of a change in floating-point order (cond(P) ~ 2e11); after it, piqp's error enters
+        # the next ticks through the torque-change penalty
+        first = int(np.argmax(base_piqp)) if base_piqp.any() else len(du)
+        out[f"{kind}_torque_diff_max_before_first_piqp_nm"] = float(
+            du[:first].max()) if first else 0.0
+        out[f"{kind}_torque_diff_median_before_first_piqp_nm"] = float(
+            np.median(du[:first])) if first else 0.0
         out[f"{kind}_modes_equal"] = bool(np.array_equal(ub.mode, ut.mode))
         for what, label in (("tick", "wall"), ("tick_cpu", "cpu")):
             rows.append((f"{kind} {label} median / p99 / max", " -> ".join(
@@ -243,6 +251,10 @@ def side_by_side(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, 
                          out[f"{kind}_torque_diff_max_nm"],
                          out[f"{kind}_torque_diff_max_closed_form_ticks_nm"],
                          out[f"{kind}_torque_diff_max_baseline_piqp_ticks_nm"])))
+        rows.append((f"{kind} max / median |du| before the baseline's first piqp tick (N m)",
+                     "{:.2e} / {:.2e} ({} ticks)".format(
+                         out[f"{kind}_torque_diff_max_before_first_piqp_nm"],
+                         out[f"{kind}_torque_diff_median_before_first_piqp_nm"], first)))
         rows.append((f"{kind} same mode every tick", out[f"{kind}_modes_equal"]))
     print_table(f"side by side: baseline {rev} -> this tree (ms, {repeats} interleaved "
                 "repeats; ratio = baseline / this)", rows)
