@@ -307,6 +307,10 @@ class OscQP:
         _store(np.zeros(nmax), self._rows_of(np.ones(ncp, dtype=bool))[0], np.zeros(nu),
                np.zeros(ncp3), np.zeros(nu), np.zeros(ncp3))
         _Solver(nu + 3, 1, np.ones(nu), 0.5, 1.0).closed_form(np.eye(nu + 3), np.ones(nu + 3))
+        # the solvers of standing (4 points, loaded) and walking (4 or 2 points), made now: a
+        # first tick in each would otherwise pay for their set-up
+        for nc, fz_min in ((4, self.wts.standing_fz_min), (4, 0.0), (2, 0.0)):
+            self._solver(nc, fz_min)
 
     def solve(self, tasks: TaskRows, stance: np.ndarray, fz_min: float = 0.0,
               fz_max: np.ndarray | None = None) -> QpResult:
@@ -319,16 +323,12 @@ class OscQP:
         forces below the configured limit (the double-stance weight transfer).
         """
         t0 = time.perf_counter()
-        m = self.model
-        nu = self.nu
         rows, points = self._rows_of(stance)
         nc = len(points)
-        n = nu + 3 * nc
         P, c = self._build(tasks, rows)
         solver = self._solvers.get((nc, fz_min))
         if solver is None:
-            solver = _Solver(n, nc, m.u_max, self.wts.mu, self.wts.fz_max, fz_min)
-            self._solvers[(nc, fz_min)] = solver
+            solver = self._solver(nc, fz_min)
         if fz_max is None:
             solver.set_fz_max(self._fz_default[:nc])
         else:
@@ -349,6 +349,13 @@ class OscQP:
         else:
             self._x = None
         return QpResult(self.u, self.lam, self.dv, status, iters, t2 - t1, t1 - t0)
+
+    def _solver(self, nc: int, fz_min: float) -> _Solver:
+        """The solver for ``nc`` stance points and a normal-force floor ``fz_min`` (made once)."""
+        s = _Solver(self.nu + 3 * nc, nc, self.model.u_max, self.wts.mu, self.wts.fz_max,
+                    fz_min)
+        self._solvers[(nc, fz_min)] = s
+        return s
 
     def last_problem(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                     np.ndarray]:
