@@ -184,6 +184,9 @@ class CassieModel:
         self.R_list = self.R_pelvis.tolist()
         # MjData arrays are views into buffers that never move: fetch the wrappers once
         self._arr = _DataViews(self.d)
+        #: the state of the last ``update`` (float64, contiguous: the compiled tasks read it)
+        self.q = self._arr.qpos
+        self.v = self._arr.qvel
         #: (3, 12) averaging of a foot's two contact points: foot-centre rows from Jc, p, v
         self.foot_avg = np.zeros((2, 3, 3 * self.n_contact_points))
         for side in range(2):

@@ -44,8 +44,9 @@ class SafetyMonitor:
         # a sum is NaN when any entry is NaN or +-inf (inf - inf, inf + x, NaN + x)
         if self.fault is None:
             if (type(q) is np.ndarray and type(v) is np.ndarray and q.dtype == np.float64
-                    and v.dtype == np.float64 and q.ndim == 1 and v.ndim == 1):
-                ok = _finite_sums(q, v)  # the per-tick case, compiled
+                    and v.dtype == np.float64 and q.ndim == 1 and v.ndim == 1
+                    and q.flags.c_contiguous and v.flags.c_contiguous):
+                ok = _finite_sums(q, v)  # the per-tick case, compiled (one specialisation)
             else:
                 ok = math.isfinite(float(np.sum(q))) and math.isfinite(float(np.sum(v)))
             if not ok:

@@ -17,6 +17,8 @@ from .tasks import STANDING_TASKS, StandingParams, TaskLog, standing_rows
 
 #: All four foot contact points carry force while standing.
 STANDING_STANCE = np.ones(4, dtype=bool)
+
+
 class StandingController:
     """Task references for standing; ``start`` captures the pose it stands from."""
 
@@ -33,9 +35,9 @@ class StandingController:
         # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
         idx = np.zeros(2, dtype=np.int64)
         standing_rows(np.zeros((20, 3)), np.zeros(nv + 3), np.zeros(nv),
-                       np.zeros((16, 2), np.int64), np.zeros((16, 4)), 0, self._errs,
-                       params.com.packed, params.pelvis.packed, params.hip_yaw.packed, 0.0, 0.0,
-                       0.8, 0.0, idx, idx, self._hip_des)
+                      np.zeros((16, 2), np.int64), np.zeros((16, 4)), 0, self._errs,
+                      params.com.packed, params.pelvis.packed, params.hip_yaw.packed, 0.0, 0.0,
+                      0.8, 0.0, idx, idx, self._hip_des)
 
     def start(self, t: float, m: CassieModel, q: np.ndarray) -> None:
         """Capture what to stand from: the CoM height above the feet, the pelvis yaw and the
@@ -68,11 +70,11 @@ class StandingController:
         # CoM (x, y, z), pelvis level at the entry yaw, hip yaws held (Table VI)
         hip = self._hip_des
         hip[0], hip[1] = self.hip_yaw
-        rows.n = standing_rows(m.kin, q, v, rows.ri, rows.rf, rows.n, self._errs,
-                                p.com.packed, p.pelvis.packed, p.hip_yaw.packed,
-                                self.xy0[0] + a * (x_goal - self.xy0[0]),
-                                self.xy0[1] + a * (y_goal - self.xy0[1]), ctr[2] + z, self.yaw,
-                                m.hip_yaw_qpos, m.hip_yaw_dof, hip)
+        rows.n = standing_rows(m.kin, m.q, m.v, rows.ri, rows.rf, rows.n, self._errs,
+                               p.com.packed, p.pelvis.packed, p.hip_yaw.packed,
+                               self.xy0[0] + a * (x_goal - self.xy0[0]),
+                               self.xy0[1] + a * (y_goal - self.xy0[1]), ctr[2] + z, self.yaw,
+                               m.hip_yaw_qpos, m.hip_yaw_dof, hip)
         log.names.extend(STANDING_TASKS)
         log.errors.extend(self._errs.tolist())
         return STANDING_STANCE

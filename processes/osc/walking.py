@@ -460,7 +460,7 @@ class WalkingController:
         if not ph.single_stance:
             self._swing_key = None
             cop_f = self._double_stance(qp, m, plan, t, st)
-            rows.n = walking_rows(m.kin, m.Jc_dot_v, q, v, rows.ri, rows.rf, rows.n,
+            rows.n = walking_rows(m.kin, m.Jc_dot_v, m.q, m.v, rows.ri, rows.rf, rows.n,
                                    self._errs, qp.moment_rows, p.com.packed, p.pelvis.packed,
                                    p.swing_foot.packed, p.toe.packed, p.hip_yaw.packed, z, zd,
                                    yaw_rate, yaw, False, st, self.swing._out, 0.0, 0, 0, False,
@@ -487,7 +487,7 @@ class WalkingController:
         # on the toe motor instead would put it under the toe joint, ~2 cm along the blade,
         # and push the robot forward every step).
         ankle = p.ankle_torque_weight > 0.0
-        rows.n = walking_rows(m.kin, m.Jc_dot_v, q, v, rows.ri, rows.rf, rows.n, self._errs,
+        rows.n = walking_rows(m.kin, m.Jc_dot_v, m.q, m.v, rows.ri, rows.rf, rows.n, self._errs,
                                qp.moment_rows, p.com.packed, p.pelvis.packed,
                                p.swing_foot.packed, p.toe.packed, p.hip_yaw.packed, z, zd,
                                yaw_rate, yaw, True, st, ref, toe, int(m.hip_yaw_qpos[sw]),

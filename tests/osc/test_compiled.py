@@ -435,4 +435,11 @@ def test_no_kernel_compiles_on_a_tick(q_stand):
     osc.update(0.005, q_stand, np.zeros(32), _Plan(DOUBLE_AFTER_LEFT, 0.0, 0.3, st, nxt), _Cmd())
     osc.update(0.01, q_stand, np.zeros(32), _Plan(SINGLE_LEFT, 0.0, 0.3, st, nxt), _Cmd())
     assert osc.mode == 0
+    # states the kernels never see directly: strided views, another float type
+    q_strided = np.repeat(q_stand, 2)[::2]
+    osc.update(0.0105, q_strided, np.zeros(64)[::2], _Plan(SINGLE_LEFT, 0.0, 0.3, st, nxt),
+               _Cmd())
+    osc.update(0.011, q_stand.astype(np.float32), np.zeros(32, np.float32),
+               _Plan(SINGLE_LEFT, 0.0, 0.3, st, nxt), _Cmd())
+    assert osc.mode == 0
     assert signatures() == before
