@@ -139,8 +139,10 @@ def baseline_controller(rev: str) -> Callable[[], Any]:
     """A factory of the ``OscController`` of git revision ``rev``: its ``processes/osc``
     imported beside this tree's as package ``baseline_osc`` (its imports of ``runtime`` resolve
     to this tree's), with that revision's ``hw_config/gains/osc.yaml``."""
+    import atexit
     import importlib
     import io
+    import shutil
     import subprocess
     import sys
     import tarfile
@@ -158,6 +160,7 @@ def baseline_controller(rev: str) -> Callable[[], Any]:
                          f"git ({err.decode().strip() or exc}); give a commit of this "
                          "repository") from exc
     root = Path(tempfile.mkdtemp(prefix="osc-baseline-"))
+    atexit.register(shutil.rmtree, root, True)  # the extracted tree, when the bench ends
     with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
         tf.extractall(root, filter="data")
     # root/pkg/baseline_osc: the package's parents[2] is root, where its gains file lies
@@ -395,7 +398,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="ticks recorded per run (2 kHz: 4000 = 2 s of sim time)")
     ap.add_argument("--baseline", metavar="REV", default=None,
                     help="also time the OSC of git revision REV on the same states, "
-                         "interleaved with this tree's, and compare their torques")
+                         "interleaved with this tree's, and compare their torques (a "
+                         "revision with numba kernels compiles them first, ~12 s)")
     ap.add_argument("--repeats", type=int, default=3,
                     help="interleaved repeats of each version with --baseline (default 3)")
     ap.add_argument("--optimality", action="store_true",
