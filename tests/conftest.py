@@ -23,16 +23,18 @@ if not os.environ.get("MENAGERIE_ROOT"):
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
-    """Compile the numba kernels (state estimator, MPFC search) into their on-disk cache once,
-    up front: on a fresh clone the first compile takes ~10 s, which would otherwise land
-    inside the start-up timeout of whichever test first launches one of those processes."""
+    """Compile the numba kernels (state estimator, MPFC search, OSC) into their on-disk cache
+    once, up front: on a fresh clone the first compile takes ~10 s each, which would otherwise
+    land inside the start-up timeout of whichever test first launches one of those processes."""
     from processes.mpfc.search import ExactSearch, QpEngine
 
     ExactSearch(QpEngine(2))
     if os.environ.get("MENAGERIE_ROOT"):
+        from processes.osc.controller import OscController
         from processes.state_estimator.estimator import CassieEstimator
 
         CassieEstimator()
+        OscController()
 
 
 @pytest.fixture

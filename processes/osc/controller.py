@@ -10,6 +10,7 @@ joint limits.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -25,6 +26,8 @@ from .standing import StandingController
 from .tasks import OscParams, TaskLog
 from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, GaitPhase, WalkingController
 from .walking import STANDING as GAIT_STANDING
+
+log = logging.getLogger(__name__)
 
 WALKING, STANDING, SAFE = 0, 1, 2
 MODE_NAMES = {WALKING: "walking", STANDING: "standing", SAFE: "safe"}
@@ -52,7 +55,7 @@ def _plan_ok(plan: Any) -> bool:
         vals = [*plan.stance_foot_world, *plan.next_footstep_world, plan.stance_yaw,
                 plan.prev_switch_time_s, plan.next_switch_time_s, plan.ankle_torque]
         return (0 <= int(plan.gait_state) <= 4 and int(plan.stance) in (0, 1)
-                and len(vals) == 10 and all(math.isfinite(float(x)) for x in vals))
+                and len(vals) == 10 and all(map(math.isfinite, map(float, vals))))
     except (AttributeError, TypeError, ValueError):
         return False
 
@@ -70,6 +73,7 @@ class OscController:
 
     def __init__(self, params: OscParams | None = None, model: CassieModel | None = None,
                  gains_file: str | Path | None = None) -> None:
+        t_setup = time.perf_counter()
         self.params = params if params is not None else OscParams.from_yaml(gains_file)
         self.model = model if model is not None else CassieModel()
         m = self.model
@@ -88,6 +92,13 @@ class OscController:
         self._rigid_swing_springs = self.params.springs == "rigid_swing"
         self._q = np.zeros(m.nq)
         self._v = np.zeros(m.nv)
+        #: per leg, the qpos and dof indices of its two leaf springs
+        self._spring_idx = [(*(int(i) for i in m.spring_qpos[2 * s : 2 * s + 2]),
+                             *(int(i) for i in m.spring_dof[2 * s : 2 * s + 2])) for s in (0, 1)]
+        self._u_min = -m.u_max
+        if (setup_s := time.perf_counter() - t_setup) > 3.0:
+            log.info("OSC set up in %.1f s: numba compiled its kernels (first start on this "
+                     "machine or after a code change; cached in __pycache__ from now)", setup_s)
 
     # ------------------------------------------------------------------ public
     def reset(self) -> None:
@@ -123,12 +134,15 @@ class OscController:
             # contact-point geometry the ALIP state is measured from).
             self._q[:] = q
             self._v[:] = v
-            self._q[m.spring_qpos[2 * swing : 2 * swing + 2]] = 0.0
-            self._v[m.spring_dof[2 * swing : 2 * swing + 2]] = 0.0
+            q0, q1, d0, d1 = self._spring_idx[swing]
+            self._q[q0] = self._q[q1] = 0.0
+            self._v[d0] = self._v[d1] = 0.0
             q, v = self._q, self._v
         try:
             m.update(q, v)
-            fault = self.safety.check_fall(float(q[2]) - float(m.p_contact[:, 2].min()))
+            pc = m.p_contact_l
+            fault = self.safety.check_fall(float(q[2]) - min(pc[0][2], pc[1][2], pc[2][2],
+                                                                pc[3][2]))
             if fault is not None:
                 return self._safe(q, v, fault, t0)
             fault = self._choose_mode(t_s, plan, command, plan_ok)
@@ -158,7 +172,7 @@ class OscController:
             return self._safe(q, v, self.safety.fault or "controller error", t0)
         if res.status == 1:
             self.qp_failures = 0
-            np.clip(res.u, -m.u_max, m.u_max, out=self.u)
+            np.minimum(np.maximum(res.u, self._u_min, out=self.u), m.u_max, out=self.u)
             status = MODE_NAMES[self.mode]
             if self.waiting:
                 status += " (walk asked: waiting for a double-stance plan to hand over)"

@@ -8,6 +8,7 @@ N m in actuator order) and ``debug`` (osc_debug_t), both stamped with the state'
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -70,11 +71,12 @@ class OscNode(Node):
         t = float(state.header.utime) * 1e-6
         command = inbox.latest("command") or self._default_command
         u, dbg = ctrl.update(t, q, v, inbox.latest("plan"), command)
-        if not np.all(np.isfinite(u)):  # defence in depth: never publish a NaN torque
-            u = np.zeros_like(u)
+        torque = u.tolist()
+        if not math.isfinite(sum(torque)):  # defence in depth: never publish a NaN torque
+            torque = [0.0] * len(torque)
         cmd = self._torque
         cmd.header.utime = state.header.utime
-        cmd.torque = u.tolist()
+        cmd.torque = torque
         cmd.mode = dbg.mode
         cmd.status = dbg.status
         ctx.publish("torque", cmd)
@@ -90,8 +92,8 @@ class OscNode(Node):
         d.mode = dbg.mode
         d.status = dbg.status
         d.num_tasks = len(dbg.task_names)
-        d.task_names = list(dbg.task_names)
-        d.task_errors = list(dbg.task_errors)
+        d.task_names = dbg.task_names  # the controller makes new lists every tick: no copy
+        d.task_errors = dbg.task_errors
         ctx.publish("debug", d)
 
     def status(self) -> str:

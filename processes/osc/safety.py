@@ -10,9 +10,22 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from .tasks import SafetyParams
+
+
+@numba.njit(cache=True, nogil=True)
+def _finite_sums(q: np.ndarray, v: np.ndarray) -> bool:
+    """Both sums finite: false when any entry is NaN or +-inf (inf - inf, inf + x, NaN + x)."""
+    s = 0.0
+    for x in q:
+        s += x
+    t = 0.0
+    for x in v:
+        t += x
+    return math.isfinite(s) and math.isfinite(t)
 
 
 class SafetyMonitor:
@@ -24,13 +37,20 @@ class SafetyMonitor:
         self.u_max = u_max
         self.fault: str | None = None
         self._u = np.zeros(len(motor_dof))
+        _finite_sums(self._u, self._u)  # compile (or load from numba's cache) now
 
     def check_state(self, q: np.ndarray, v: np.ndarray) -> str | None:
         """Latch and return a fault for a non-finite state, else the current latch."""
         # a sum is NaN when any entry is NaN or +-inf (inf - inf, inf + x, NaN + x)
-        if self.fault is None and not (math.isfinite(float(q.sum()))
-                                       and math.isfinite(float(v.sum()))):
-            self.fault = "non-finite state (NaN/inf in q or v)"
+        if self.fault is None:
+            if (type(q) is np.ndarray and type(v) is np.ndarray and q.dtype == np.float64
+                    and v.dtype == np.float64 and q.ndim == 1 and v.ndim == 1
+                    and q.flags.c_contiguous and v.flags.c_contiguous):
+                ok = _finite_sums(q, v)  # the per-tick case, compiled (one specialisation)
+            else:
+                ok = math.isfinite(float(np.sum(q))) and math.isfinite(float(np.sum(v)))
+            if not ok:
+                self.fault = "non-finite state (NaN/inf in q or v)"
         return self.fault
 
     def check_fall(self, pelvis_over_feet: float) -> str | None:

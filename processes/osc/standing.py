@@ -13,7 +13,7 @@ import numpy as np
 
 from .model import CassieModel
 from .qp import TaskRows
-from .tasks import PelvisOrientationTask, StandingParams, TaskLog, add_com_task, add_joint_task
+from .tasks import STANDING_TASKS, StandingParams, TaskLog, standing_rows
 
 #: All four foot contact points carry force while standing.
 STANDING_STANCE = np.ones(4, dtype=bool)
@@ -24,14 +24,20 @@ class StandingController:
 
     def __init__(self, params: StandingParams, nv: int) -> None:
         self.p = params
-        self.pelvis = PelvisOrientationTask(nv)
         self.t0 = 0.0
         self.z0 = params.com_height
         self.yaw = 0.0
-        self._zero = [0.0, 0.0, 0.0]
         self.hip_yaw = [0.0, 0.0]
         self.xy0 = [0.0, 0.0]
         self.started = False
+        self._errs = np.zeros(len(STANDING_TASKS))
+        self._hip_des = np.zeros(2)
+        # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
+        idx = np.zeros(2, dtype=np.int64)
+        standing_rows(np.zeros((20, 3)), np.zeros(nv + 3), np.zeros(nv),
+                      np.zeros((16, 2), np.int64), np.zeros((16, 4)), 0, self._errs,
+                      params.com.packed, params.pelvis.packed, params.hip_yaw.packed, 0.0, 0.0,
+                      0.8, 0.0, idx, idx, self._hip_des)
 
     def start(self, t: float, m: CassieModel, q: np.ndarray) -> None:
         """Capture what to stand from: the CoM height above the feet, the pelvis yaw and the
@@ -61,11 +67,14 @@ class StandingController:
         a = min(1.0, (t - self.t0) / p.xy_ramp_s) if p.xy_ramp_s > 0.0 else 1.0
         x_goal = ctr[0] + c * p.com_offset_x
         y_goal = ctr[1] + s * p.com_offset_x
-        pos = [self.xy0[0] + a * (x_goal - self.xy0[0]), self.xy0[1] + a * (y_goal - self.xy0[1]),
-               ctr[2] + z]
-        add_com_task(rows, log, m, p.com, pos, self._zero, self._zero)
-        self.pelvis.add(rows, log, m, v, p.pelvis, self.yaw, 0.0)
-        for side in range(2):
-            add_joint_task(rows, log, m, q, v, int(m.hip_yaw_qpos[side]), int(m.hip_yaw_dof[side]),
-                           p.hip_yaw, self.hip_yaw[side], ("left", "right")[side] + "_hip_yaw")
+        # CoM (x, y, z), pelvis level at the entry yaw, hip yaws held (Table VI)
+        hip = self._hip_des
+        hip[0], hip[1] = self.hip_yaw
+        rows.n = standing_rows(m.kin, m.q, m.v, rows.ri, rows.rf, rows.n, self._errs,
+                               p.com.packed, p.pelvis.packed, p.hip_yaw.packed,
+                               self.xy0[0] + a * (x_goal - self.xy0[0]),
+                               self.xy0[1] + a * (y_goal - self.xy0[1]), ctr[2] + z, self.yaw,
+                               m.hip_yaw_qpos, m.hip_yaw_dof, hip)
+        log.names.extend(STANDING_TASKS)
+        log.errors.extend(self._errs.tolist())
         return STANDING_STANCE

@@ -15,22 +15,20 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
-from scipy.linalg import lapack
 
 from .model import LEFT, RIGHT, CassieModel
 from .qp import OscQP, TaskRows
 from .tasks import (
-    PelvisOrientationTask,
+    DOUBLE_STANCE_TASKS,
+    SINGLE_STANCE_TASKS,
     TaskLog,
     WalkingParams,
-    add_com_task,
-    add_foot_pitch_task,
-    add_foot_position_task,
-    add_joint_task,
+    walking_rows,
 )
 
-_gesv = lapack.dgesv
+_jit = numba.njit(cache=True, nogil=True)
 
 SINGLE_LEFT, SINGLE_RIGHT, DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, STANDING = range(5)
 _STANCE_MASKS = {
@@ -68,21 +66,25 @@ class ComHeightPlane:
 
     def __init__(self, params: WalkingParams) -> None:
         self.p = params
-        self.k = np.zeros(2)  # low-passed (k_x, k_y)
+        self.k = np.zeros(2)  # low-passed (k_x, k_y) (a copy of the float state below)
+        self._kx = self._ky = 0.0
         self.t_last: float | None = None
 
     def reset(self) -> None:
         """Forget the filter state (a new walking episode)."""
         self.t_last = None
         self.k[:] = 0.0
+        self._kx = self._ky = 0.0
 
     def reference(self, t: float, stance_pos: Any, next_pos: Any, yaw: float,
                   com: Any, com_vel: Any) -> tuple[float, float, float]:
         """Return (z_des, zdot_des, k_x) in the world frame for the current CoM state
         (positions as 3-sequences of floats, world frame)."""
         c, s = math.cos(yaw), math.sin(yaw)
-        d = [next_pos[i] - stance_pos[i] for i in range(3)]
-        px, py, pz = c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]  # stance frame
+        s0, s1, s2 = (float(x) for x in stance_pos)
+        n0, n1, n2 = (float(x) for x in next_pos)
+        d0, d1 = n0 - s0, n1 - s1
+        px, py, pz = c * d0 + s * d1, -s * d0 + c * d1, n2 - s2  # stance frame
         det = px * px + py * py  # (21): [[px, py], [-py, px]] k = [pz, 0]
         if det > 1e-6:
             kx, ky = px * pz / det, py * pz / det
@@ -90,20 +92,24 @@ class ComHeightPlane:
             kx = ky = 0.0
         # first-order low-pass with a com_filter_hz cutoff (Section V-A)
         if self.t_last is None:
-            self.k[:] = (kx, ky)
+            self._kx, self._ky = kx, ky
         else:
             dt = max(0.0, t - self.t_last)
             a = 1.0 - math.exp(-2.0 * math.pi * self.p.com_filter_hz * dt)
-            self.k[0] += a * (kx - self.k[0])
-            self.k[1] += a * (ky - self.k[1])
+            self._kx += a * (kx - self._kx)
+            self._ky += a * (ky - self._ky)
         self.t_last = t
-        r = [com[i] - stance_pos[i] for i in range(3)]
-        xc, yc = c * r[0] + s * r[1], -s * r[0] + c * r[1]
+        fx, fy = self._kx, self._ky
+        self.k[0] = fx
+        self.k[1] = fy
+        c0, c1, c2 = (float(x) for x in com)
+        r0, r1 = c0 - s0, c1 - s1
+        xc, yc = c * r0 + s * r1, -s * r0 + c * r1
         vx, vy = c * com_vel[0] + s * com_vel[1], -s * com_vel[0] + c * com_vel[1]
-        z = stance_pos[2] + self.p.com_height + self.k[0] * xc + self.k[1] * yc  # (22)
+        z = s2 + self.p.com_height + fx * xc + fy * yc  # (22)
         clip = self.p.com_clip  # keep z_des within 2.5 cm of the measured CoM height
-        z = min(max(z, com[2] - clip), com[2] + clip)
-        return z, self.k[0] * vx + self.k[1] * vy, float(self.k[0])
+        z = min(max(z, c2 - clip), c2 + clip)
+        return z, fx * vx + fy * vy, fx
 
 
 def swing_midpoint(p0: np.ndarray, p_des: np.ndarray, clearance: float) -> list[float]:
@@ -173,7 +179,7 @@ class SwingFootTrajectory:
     0.1 T before mid-swing on, where it would nearly repeat the continuity row). Stepping up
     by ``step_up_min`` or more, the waypoints are those of ``swing_waypoints`` (one row each,
     each dropped likewise 0.1 T before its time). The equality-constrained KKT system is
-    solved in closed form, one factorisation for 3 axes.
+    solved in closed form, one factorisation for 3 axes (compiled: ``_swing_solve``).
     """
 
     def __init__(self, degree: int = 8, freeze_s: float = 0.02, mid_margin: float = 0.1,
@@ -201,38 +207,15 @@ class SwingFootTrajectory:
         self.active = False
         self.freeze_s = freeze_s
         self.mid_margin = mid_margin
-        # KKT templates [2Q A^T; A 0], A = [end rows (3); waypoint rows; continuity rows (3)],
-        # one per set of waypoint times; only the continuity rows change from tick to tick.
-        self._K: dict[tuple[float, ...], np.ndarray] = {}
-        self._rhs: dict[tuple[float, ...], np.ndarray] = {}
-
-    def _template(self, taus: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """The KKT matrix and right-hand side for waypoints at ``taus`` (built once each)."""
-        K = self._K.get(taus)
-        if K is None:
-            nc = self.nc
-            ne = 6 + len(taus)
-            K = np.zeros((nc + ne, nc + ne))
-            K[:nc, :nc] = self._Q2
-            K[nc : nc + 3, :nc] = self._basis3(1.0)
-            for i, tau in enumerate(taus):
-                K[nc + 3 + i, :nc] = self._basis3(tau)[0]
-            K[:nc, nc:] = K[nc:, :nc].T
-            self._K[taus] = K
-            self._rhs[taus] = np.zeros((nc + ne, 3))
-        return K, self._rhs[taus]
-
-    def _basis3(self, tau: float) -> np.ndarray:
-        """Rows [p, dp/dtau, d2p/dtau2] of the monomials 1, tau, ..., tau^deg at tau."""
-        nc = self.nc
-        pw = [1.0] * nc
-        for i in range(1, nc):
-            pw[i] = pw[i - 1] * tau
-        return np.array([
-            pw,
-            [0.0] + [i * pw[i - 1] for i in range(1, nc)],
-            [0.0, 0.0] + [i * (i - 1) * pw[i - 2] for i in range(2, nc)],
-        ])
+        # scratch of the compiled KKT solve: waypoints (tau, x, y, z), KKT matrix and rhs
+        self._wp = np.zeros((4, 4))
+        self._K = np.zeros((nc + 6 + 4, nc + 6 + 4))
+        self._rhs = np.zeros((nc + 6 + 4, 3))
+        self._out = np.zeros((3, 3))
+        # compile the kernels (or load them from numba's on-disk cache) now
+        _swing_eval(self.coef, 0.0, 1.0, self._out)
+        _swing_solve(self._Q2, np.zeros((nc, 3)), 0.0, 0.0, 1.0, np.zeros(3), self._wp, 1,
+                     self._K, self._rhs)
 
     def start(self, t: float, liftoff: float, touchdown: float, p_now: np.ndarray) -> None:
         """Begin a swing at the current foot position with zero velocity and acceleration."""
@@ -248,10 +231,19 @@ class SwingFootTrajectory:
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration of the current plan at time t (clamped to T)."""
+        pos, vel, acc = self.evaluate_lists(t)
+        return np.array(pos), np.array(vel), np.array(acc)
+
+    def evaluate_lists(self, t: float) -> list[list[float]]:
+        """``evaluate`` as three lists of floats [pos, vel, acc]."""
+        return self.evaluate_into(t).tolist()
+
+    def evaluate_into(self, t: float) -> np.ndarray:
+        """``evaluate`` into a (3, 3) array [pos; vel; acc] owned by this object (the per-tick
+        path: overwritten by the next call)."""
         tau = min(max((t - self.liftoff) / self.T, 0.0), 1.0)
-        T = self.T
-        out = self._basis3(tau) @ self.coef
-        return out[0], out[1] / T, out[2] / (T * T)
+        _swing_eval(self.coef, tau, self.T, self._out)
+        return self._out
 
     def update(self, t: float, touchdown: float, p_des: np.ndarray, clearance: float) -> None:
         """Re-solve (23) for the newest touchdown time and target, then advance to t."""
@@ -260,42 +252,135 @@ class SwingFootTrajectory:
         if remaining > self.freeze_s:
             # continuity with the previous tick's polynomial at the previous tick's time
             tau_prev = min(max((self.t_prev - self.liftoff) / self.T, 0.0), 1.0)
-            prev = self._basis3(tau_prev) @ self.coef  # old polynomial, old T: d/dtau_old
             tau_k = (self.t_prev - self.liftoff) / T_new
             # a waypoint near the current time would nearly repeat the continuity row p(tau_k)
-            wps = [w for w in swing_waypoints(self.p0, p_des, clearance, self.step_up_min,
+            wp, n = self._wp, 0
+            for tau, point in swing_waypoints(self.p0, p_des, clearance, self.step_up_min,
                                               self.step_up_clearance, self.step_up_height,
-                                              self.lift_tau, self.approach_tau)
-                   if tau_k < w[0] - self.mid_margin]
-            K, rhs = self._template(tuple(w[0] for w in wps))
-            nc = self.nc
-            r = nc + 3 + len(wps)
-            B = self._basis3(tau_k)
-            K[r : r + 3, :nc] = B
-            K[:nc, r : r + 3] = B.T
-            s = T_new / self.T  # d/dtau_new = (T_new / T_old) d/dtau_old
-            rhs[r] = prev[0]
-            rhs[r + 1] = prev[1] * s
-            rhs[r + 2] = prev[2] * (s * s)
-            rhs[nc] = p_des  # p(T) = p_des; p'(T) = p''(T) = 0 stay zero
-            for i, (_, point) in enumerate(wps):
-                rhs[nc + 3 + i] = point
-            _, _, sol, info = _gesv(K, rhs)
-            if info == 0:
-                self.coef[:] = sol[:nc]
+                                              self.lift_tau, self.approach_tau):
+                if tau_k < tau - self.mid_margin:
+                    wp[n, 0] = tau
+                    wp[n, 1:] = point
+                    n += 1
+            # d/dtau_new = (T_new / T_old) d/dtau_old
+            if _swing_solve(self._Q2, self.coef, tau_prev, tau_k, T_new / self.T, p_des, wp, n,
+                            self._K, self._rhs) == 0:
                 self.T = T_new
         self.t_prev = t
 
 
-def _moment_row(row: np.ndarray, points: np.ndarray, idx: Any, about: np.ndarray,
-                axis: tuple[float, float, float]) -> None:
-    """Fill ``row`` (3 per contact point) with the moment along ``axis`` about ``about`` of
-    the forces at ``points[idx]``: axis . ((p_i - c) x f_i) = f_i . (axis x (p_i - c))."""
-    row[:] = 0.0
-    ax, ay, az = axis
-    for i in idx:
-        rx, ry, rz = (points[i] - about).tolist()
-        row[3 * i : 3 * i + 3] = (ay * rz - az * ry, az * rx - ax * rz, ax * ry - ay * rx)
+@_jit
+def _basis_row(tau: float, d: int, out: np.ndarray) -> None:
+    """Row ``d`` (0: p, 1: dp/dtau, 2: d2p/dtau2) of the monomials 1, tau, ..., tau^deg."""
+    nc = out.size
+    pw = 1.0  # tau^(i - d)
+    for i in range(nc):
+        if i < d:
+            out[i] = 0.0
+            continue
+        f = 1.0 if d == 0 else (i if d == 1 else i * (i - 1))
+        out[i] = f * pw
+        pw *= tau
+
+
+@_jit
+def _swing_eval(coef: np.ndarray, tau: float, T: float, out: np.ndarray) -> None:
+    """out = [p, dp/dt, d2p/dt2] (3, 3) of the polynomial ``coef`` (nc, 3) at tau (time T)."""
+    nc = coef.shape[0]
+    row = np.empty(nc)
+    for d in range(3):
+        _basis_row(tau, d, row)
+        scale = 1.0 if d == 0 else (T if d == 1 else T * T)
+        for a in range(3):
+            s = 0.0
+            for i in range(nc):
+                s += row[i] * coef[i, a]
+            out[d, a] = s / scale if d > 0 else s
+
+
+@_jit
+def _swing_solve(Q2: np.ndarray, coef: np.ndarray, tau_prev: float, tau_k: float, s: float,
+                 p_des: np.ndarray, wp: np.ndarray, nwp: int, Kbuf: np.ndarray,
+                 rbuf: np.ndarray) -> int:
+    """One solve of (23): the KKT system [2Q A'; A 0] [c; nu] = [0; d] with A = [end rows
+    p, p', p'' at tau = 1 (3); waypoint positions (nwp); continuity p, p', p'' at tau_k (3)]
+    and d = [p_des, 0, 0; waypoints; the old polynomial at tau_prev, its derivatives scaled
+    by s and s^2]; LU with partial pivoting, 3 right-hand sides. Writes ``coef`` (nc, 3) and
+    returns 0, or 1 (``coef`` unchanged) when the system is singular."""
+    nc = coef.shape[0]
+    N = nc + 6 + nwp
+    K = Kbuf[:N, :N]
+    rhs = rbuf[:N]
+    row = np.empty(nc)
+    prev = np.zeros((3, 3))  # old polynomial at tau_prev: d/dtau_old
+    for d in range(3):
+        _basis_row(tau_prev, d, row)
+        for a in range(3):
+            for i in range(nc):
+                prev[d, a] += row[i] * coef[i, a]
+    # (explicit loops: slice assignments make numba compile far longer)
+    for i in range(N):
+        for j in range(N):
+            K[i, j] = Q2[i, j] if i < nc and j < nc else 0.0
+        for a in range(3):
+            rhs[i, a] = 0.0
+    for d in range(3):  # p(1) = p_des, p'(1) = p''(1) = 0
+        _basis_row(1.0, d, row)
+        for j in range(nc):
+            K[nc + d, j] = row[j]
+    for w in range(nwp):
+        _basis_row(wp[w, 0], 0, row)
+        for j in range(nc):
+            K[nc + 3 + w, j] = row[j]
+        for a in range(3):
+            rhs[nc + 3 + w, a] = wp[w, 1 + a]
+    r = nc + 3 + nwp
+    for d in range(3):
+        _basis_row(tau_k, d, row)
+        for j in range(nc):
+            K[r + d, j] = row[j]
+    for i in range(nc, N):
+        for j in range(nc):
+            K[j, i] = K[i, j]
+    for a in range(3):
+        rhs[nc, a] = p_des[a]
+    f = 1.0
+    for d in range(3):
+        for a in range(3):
+            rhs[r + d, a] = prev[d, a] * f
+        f = s if d == 0 else s * s
+    # Gaussian elimination with partial pivoting (as LAPACK's dgesv)
+    for k in range(N):
+        piv = k
+        big = abs(K[k, k])
+        for i in range(k + 1, N):
+            if abs(K[i, k]) > big:
+                big = abs(K[i, k])
+                piv = i
+        if big == 0.0:
+            return 1
+        if piv != k:
+            for j in range(N):
+                K[k, j], K[piv, j] = K[piv, j], K[k, j]
+            for a in range(3):
+                rhs[k, a], rhs[piv, a] = rhs[piv, a], rhs[k, a]
+        for i in range(k + 1, N):
+            lik = K[i, k] / K[k, k]
+            if lik != 0.0:
+                for j in range(k + 1, N):
+                    K[i, j] -= lik * K[k, j]
+                for a in range(3):
+                    rhs[i, a] -= lik * rhs[k, a]
+    for i in range(N - 1, -1, -1):
+        for a in range(3):
+            t = rhs[i, a]
+            for j in range(i + 1, N):
+                t -= K[i, j] * rhs[j, a]
+            rhs[i, a] = t / K[i, i]
+    for i in range(nc):
+        for a in range(3):
+            coef[i, a] = rhs[i, a]
+    return 0
 
 
 class WalkingController:
@@ -303,7 +388,6 @@ class WalkingController:
 
     def __init__(self, params: WalkingParams, nv: int) -> None:
         self.p = params
-        self.pelvis = PelvisOrientationTask(nv)
         self.plane = ComHeightPlane(params)
         self.swing = SwingFootTrajectory(params.swing_degree,
                                          step_up_min=params.swing_step_up_min,
@@ -316,30 +400,38 @@ class WalkingController:
         self.phase: GaitPhase | None = None
         #: per-contact-point normal-force caps for the QP (inf: only the configured limit)
         self.fz_max = np.full(4, np.inf)
+        self._errs = np.zeros(len(SINGLE_STANCE_TASKS))
+        # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
+        kin, rows = np.zeros((20, 3)), np.zeros((16, 4))
+        kin[0:3] = np.eye(3)
+        kin[8:12] = ((0.1, 0.1, 0.0), (-0.1, 0.1, 0.0), (0.1, -0.1, 0.0), (-0.1, -0.1, 0.0))
+        g = [x.packed for x in (params.com, params.pelvis, params.swing_foot, params.toe,
+                                params.hip_yaw)]
+        walking_rows(kin, np.zeros(12), np.zeros(nv + 3), np.zeros(nv),
+                      np.zeros((16, 2), np.int64), rows, 0, self._errs, np.zeros((2, 12)), *g,
+                      0.8, 0.0, 0.0, 0.0, True, 0, np.zeros((3, 3)), 0.0, 0, 0, True, -1.0)
 
-    def _double_stance(self, qp: OscQP, m: CassieModel, plan: Any, t: float, stance: int,
-                       yaw: float) -> None:
+    def _double_stance(self, qp: OscQP, m: CassieModel, plan: Any, t: float,
+                       stance: int) -> float:
         """Weight transfer of the ALIP's double stance, f(t) = t / T_ds of (2) and (7): the
         trailing foot may carry at most (1 - f) m g, so it lifts off unloaded and its leaf
         springs do not ring through the swing (Section III-B), and the centre of pressure is
         pulled towards p_CoP(t) = p_- + f (p_+ - p_-) of (2), where the MPFC's reset map (9)
-        assumes it is."""
+        assumes it is. Sets the caps and the moment cost; returns f when the CoP moment rows
+        are wanted (``tasks.walking_rows`` writes them), else -1."""
         self.fz_max[:] = np.inf
         if int(plan.gait_state) not in (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT):
-            return  # a swing past its planned touchdown: both feet may carry the robot
+            return -1.0  # a swing past its planned touchdown: both feet may carry the robot
         t0, t1 = float(plan.prev_switch_time_s), float(plan.next_switch_time_s)
         f = min(max((t - t0) / (t1 - t0), 0.0), 1.0) if t1 > t0 else 1.0
         trail = 1 - stance
         self.fz_max[2 * trail : 2 * trail + 2] = 0.5 * (1.0 - f) * m.mass * 9.81  # 2 points
         if self.p.ankle_torque_weight > 0.0:
-            p_minus, p_plus = m.foot_center(trail), m.foot_center(stance)
-            cop = p_minus + f * (p_plus - p_minus)
-            c, s = math.cos(yaw), math.sin(yaw)
-            for r, axis in enumerate(((c, s, 0.0), (-s, c, 0.0))):
-                _moment_row(qp.moment_rows[r], m.p_contact, range(4), cop, axis)
-                qp.moment_target[r] = 0.0
+            qp.moment_target[0] = qp.moment_target[1] = 0.0
             qp.moment_count = 2
             qp.moment_weight = self.p.ankle_torque_weight
+            return f
+        return -1.0
 
     def reset(self) -> None:
         """Start a new walking episode: filters and swing plan from scratch."""
@@ -351,27 +443,30 @@ class WalkingController:
                   v: np.ndarray, t: float, plan: Any, ph: GaitPhase,
                   yaw_rate: float) -> np.ndarray:
         """Append the walking tasks for the plan's phase ``ph`` (``GaitPhase.from_plan``);
-        return the stance-point mask."""
+        return the stance-point mask. The references are computed here, the rows by the
+        compiled ``tasks.walking_rows``."""
         p = self.p
         self.phase = ph
         st = ph.stance
         sw = 1 - st
         stance_pos = [float(x) for x in plan.stance_foot_world]
-        next_pos = np.asarray(plan.next_footstep_world, dtype=float)
+        next_pos = [float(x) for x in plan.next_footstep_world]
         yaw = float(plan.stance_yaw)
 
         # CoM height on the footstep plane (21)-(22), z only (Table VII weights x, y = 0).
         z, zd, kx = self.plane.reference(t, stance_pos, next_pos, yaw, m.com_l, m.com_vel_l)
-        c, cv = m.com_l, m.com_vel_l
-        add_com_task(rows, log, m, p.com, [c[0], c[1], z], [cv[0], cv[1], zd], self._zero3)
-
-        # Pelvis roll/pitch to zero and the commanded yaw rate (Section V-C).
-        self.pelvis.add(rows, log, m, v, p.pelvis, m.pelvis_yaw(), yaw_rate)
 
         qp.moment_count = 0
         if not ph.single_stance:
             self._swing_key = None
-            self._double_stance(qp, m, plan, t, st, yaw)
+            cop_f = self._double_stance(qp, m, plan, t, st)
+            rows.n = walking_rows(m.kin, m.Jc_dot_v, m.q, m.v, rows.ri, rows.rf, rows.n,
+                                   self._errs, qp.moment_rows, p.com.packed, p.pelvis.packed,
+                                   p.swing_foot.packed, p.toe.packed, p.hip_yaw.packed, z, zd,
+                                   yaw_rate, yaw, False, st, self.swing._out, 0.0, 0, 0, False,
+                                   cop_f)
+            log.names.extend(DOUBLE_STANCE_TASKS)
+            log.errors.extend(self._errs[:2].tolist())
             return _STANCE_MASKS[None]
         self.fz_max[:] = np.inf
 
@@ -380,27 +475,26 @@ class WalkingController:
         if key != self._swing_key:
             self._swing_key = key
             self.swing.start(t, ph.liftoff_s, ph.touchdown_s, m.foot_center(sw))
-        self.swing.update(t, ph.touchdown_s, next_pos, p.swing_clearance)
-        pos, vel, acc = self.swing.evaluate(t)
-        add_foot_position_task(rows, log, m, sw, p.swing_foot, pos.tolist(), vel.tolist(),
-                               acc.tolist())
+        self.swing.update(t, ph.touchdown_s, np.array(next_pos), p.swing_clearance)
+        ref = self.swing.evaluate_into(t)
         # Swing toe: foot at atan(k_x) to the horizontal (Section V-C), or level ("level": on
         # level footholds, where atan(k_x) would land the heel first, L/2 sin(atan k_x) ~ 3 cm
         # below the foot's centre on 15 cm stairs); swing hip yaw at zero (Section V-C).
         toe = math.atan(kx) if p.swing_toe == "plane" else 0.0
-        add_foot_pitch_task(rows, log, m, sw, p.toe, toe)
-        add_joint_task(rows, log, m, q, v, int(m.hip_yaw_qpos[sw]), int(m.hip_yaw_dof[sw]),
-                       p.hip_yaw, 0.0, "swing_hip_yaw")
-
         # Ankle torque cost (Section V-D). The MPFC's u is the torque the ground applies to
         # the robot about the stance contact point, along the stance frame's y axis: the ALIP
         # state is about that point, so u = 0 must put the centre of pressure there (a cost
         # on the toe motor instead would put it under the toe joint, ~2 cm along the blade,
         # and push the robot forward every step).
-        if p.ankle_torque_weight > 0.0:
-            ey = (-math.sin(yaw), math.cos(yaw), 0.0)
-            _moment_row(qp.moment_rows[0], m.p_contact, (2 * st, 2 * st + 1),
-                        m.foot_center(st), ey)
+        ankle = p.ankle_torque_weight > 0.0
+        rows.n = walking_rows(m.kin, m.Jc_dot_v, m.q, m.v, rows.ri, rows.rf, rows.n, self._errs,
+                               qp.moment_rows, p.com.packed, p.pelvis.packed,
+                               p.swing_foot.packed, p.toe.packed, p.hip_yaw.packed, z, zd,
+                               yaw_rate, yaw, True, st, ref, toe, int(m.hip_yaw_qpos[sw]),
+                               int(m.hip_yaw_dof[sw]), ankle, -1.0)
+        log.names.extend(SINGLE_STANCE_TASKS)
+        log.errors.extend(self._errs.tolist())
+        if ankle:
             qp.moment_target[0] = float(plan.ankle_torque)
             qp.moment_count = 1
             qp.moment_weight = p.ankle_torque_weight

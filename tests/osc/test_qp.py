@@ -167,7 +167,7 @@ def test_double_stance_unloads_the_trailing_foot_linearly(q_stand):
 
 
 def test_closed_form_optimum_matches_piqp_when_it_certifies_one():
-    """The unconstrained / one-active-set-step shortcut returns piqp's optimum, or None."""
+    """The compiled active-set solve returns piqp's optimum (tightly converged), or None."""
     from processes.osc.qp import _Solver
 
     rng = np.random.default_rng(7)
@@ -193,4 +193,4 @@ def test_closed_form_optimum_matches_piqp_when_it_certifies_one():
         if x is not None:
             certified += 1
             np.testing.assert_allclose(x, x_ref, atol=1e-3 * (1.0 + np.abs(x_ref).max()))
-    assert certified >= 40  # the shortcut is not vacuous (55 of 60 when written)
+    assert certified == 60  # the exact active-set method certifies every one of them

@@ -6,6 +6,13 @@ node of ``hw_config/sim.yaml``, solved at 200 Hz on the true state). A fresh con
 replays each recording in order, and every ``update`` call is timed (wall clock), with piqp's
 share measured separately. The collector is disabled during the timed loops, as the live OSC
 loop does. Figures are printed and optionally written as flat JSON; nothing is asserted.
+
+``--baseline REV`` also replays the same states through the OSC of git revision REV
+(``processes/osc`` and ``hw_config/gains/osc.yaml`` extracted with ``git archive`` into a
+temporary folder and imported from there), in repeats interleaved with this tree's so both
+see the same machine load, and prints both side by side with their ratio and the largest
+difference between the two versions' torques. ``--optimality`` checks (untimed) each QP
+answer against the same QP's optimum from a tightly converged piqp.
 """
 
 from __future__ import annotations
@@ -14,6 +21,8 @@ import argparse
 import gc
 import os
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -88,29 +97,302 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     return out
 
 
-def _replay(states: list[tuple[float, np.ndarray, np.ndarray, Any, Any]]
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Time every tick of a fresh controller on the recorded states (ms): wall clock, and
-    this thread's CPU time (which a busy shared machine inflates much less)."""
-    from processes.osc.controller import OscController
+@dataclass
+class Replay:
+    """Per-tick figures of one replay: wall and CPU time (ms), piqp's share (ms), piqp
+    iterations (0: solved in closed form), mode and the torques (N m)."""
 
-    osc = OscController()
+    tick: np.ndarray
+    cpu: np.ndarray
+    solve: np.ndarray
+    iters: np.ndarray
+    mode: np.ndarray
+    u: np.ndarray
+
+
+def _replay(states: list[tuple[float, np.ndarray, np.ndarray, Any, Any]],
+            controller: Callable[[], Any] | None = None) -> Replay:
+    """Time every tick of a fresh controller on the recorded states (ms): wall clock, and
+    this thread's CPU time (which a busy shared machine inflates much less).
+    ``controller`` builds the controller to time (default: this tree's ``OscController``)."""
+    if controller is None:
+        from processes.osc.controller import OscController as controller
+
+    osc = controller()
     n = len(states)
     tick, cpu, solve, iters = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    mode, us = np.zeros(n, dtype=int), np.zeros((n, 10))
     gc.collect()
     gc.disable()
     try:
         for i, (t, q, v, plan, cmd) in enumerate(states):
             c0 = time.thread_time()
             t0 = time.perf_counter()
-            _, dbg = osc.update(t, q, v, plan, cmd)
+            u, dbg = osc.update(t, q, v, plan, cmd)
             tick[i] = (time.perf_counter() - t0) * 1e3
             cpu[i] = (time.thread_time() - c0) * 1e3
             solve[i] = dbg.solve_ms
             iters[i] = dbg.qp_iterations
+            mode[i] = dbg.mode
+            us[i] = u
     finally:
         gc.enable()
-    return tick, cpu, solve, iters
+    return Replay(tick, cpu, solve, iters, mode, us)
+
+
+def baseline_controller(rev: str) -> Callable[[], Any]:
+    """A factory of the ``OscController`` of git revision ``rev``: its ``processes/osc``
+    imported beside this tree's as package ``baseline_osc`` (its imports of ``runtime`` resolve
+    to this tree's), with that revision's ``hw_config/gains/osc.yaml``."""
+    import atexit
+    import importlib
+    import io
+    import shutil
+    import subprocess
+    import sys
+    import tarfile
+    import tempfile
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    gains = "hw_config/gains/osc.yaml"
+    try:
+        tar = subprocess.run(["git", "-C", str(repo), "archive", rev, "processes/osc", gains],
+                             check=True, capture_output=True).stdout
+    except (OSError, subprocess.CalledProcessError) as exc:
+        err = getattr(exc, "stderr", b"") or b""
+        raise SystemExit(f"--baseline {rev}: cannot read processes/osc at that revision from "
+                         f"git ({err.decode().strip() or exc}); give a commit of this "
+                         "repository") from exc
+    root = Path(tempfile.mkdtemp(prefix="osc-baseline-"))
+    atexit.register(shutil.rmtree, root, True)  # the extracted tree, when the bench ends
+    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
+        tf.extractall(root, filter="data")
+    # root/pkg/baseline_osc: the package's parents[2] is root, where its gains file lies
+    (root / "pkg").mkdir()
+    (root / "processes" / "osc").rename(root / "pkg" / "baseline_osc")
+    sys.path.insert(0, str(root / "pkg"))
+    cls = importlib.import_module("baseline_osc.controller").OscController
+    gains_file = root / gains
+    return lambda: cls(gains_file=gains_file)
+
+
+def _stats(a: np.ndarray) -> tuple[float, float, float]:
+    return float(np.median(a)), float(np.percentile(a, 99)), float(a.max())
+
+
+def side_by_side(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, Any]]],
+                 baseline: Callable[[], Any], rev: str, repeats: int = 3) -> dict[str, Any]:
+    """Replay every recording through the baseline and this tree's controller in interleaved
+    repeats (baseline, this, baseline, ...); print and return the figures, the ratios and the
+    torque agreement of the two versions."""
+    from processes.osc.controller import OscController
+
+    out: dict[str, Any] = {"baseline_rev": rev, "side_by_side_repeats": repeats}
+    rows: list[tuple[str, object]] = []
+    for kind, states in runs.items():
+        got: dict[str, list[Replay]] = {"baseline": [], "this": []}
+        for _ in range(repeats):
+            got["baseline"].append(_replay(states, baseline))
+            got["this"].append(_replay(states, OscController))
+        for name, reps in got.items():
+            for what in ("tick", "cpu"):
+                a = np.concatenate([getattr(r, what) for r in reps])
+                med, p99, mx = _stats(a)
+                key = f"{kind}_{name}_{'tick' if what == 'tick' else 'tick_cpu'}"
+                out[f"{key}_median_ms"], out[f"{key}_p99_ms"], out[f"{key}_max_ms"] = med, p99, mx
+            r0 = reps[0]
+            piqp = r0.iters > 0
+            out[f"{kind}_{name}_piqp_ticks"] = int(piqp.sum())
+            out[f"{kind}_{name}_piqp_ratio"] = float(piqp.mean())
+            if piqp.any():  # the whole tick on the ticks that called piqp
+                a = np.concatenate([r.cpu[r.iters > 0] for r in reps])
+                out[f"{kind}_{name}_piqp_tick_cpu_median_ms"] = float(np.median(a))
+                out[f"{kind}_{name}_piqp_tick_cpu_p99_ms"] = float(np.percentile(a, 99))
+            base_piqp = got["baseline"][0].iters > 0
+            if base_piqp.any():  # this tree on the ticks where the baseline needed piqp
+                a = np.concatenate([r.cpu[base_piqp] for r in reps])
+                out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_median_ms"] = float(np.median(a))
+                out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_p99_ms"] = float(
+                    np.percentile(a, 99))
+        for stat in ("median", "p99", "max"):
+            for what in ("tick", "tick_cpu"):
+                b = out[f"{kind}_baseline_{what}_{stat}_ms"]
+                t = out[f"{kind}_this_{what}_{stat}_ms"]
+                out[f"{kind}_{what}_{stat}_speedup_ratio"] = b / t
+        # torque agreement (the replays are deterministic: the first repeat of each suffices)
+        ub, ut = got["baseline"][0], got["this"][0]
+        du = np.abs(ub.u - ut.u).max(axis=1)
+        base_piqp = ub.iters > 0
+        out[f"{kind}_torque_diff_max_nm"] = float(du.max())
+        out[f"{kind}_torque_diff_median_nm"] = float(np.median(du))
+        out[f"{kind}_torque_diff_max_closed_form_ticks_nm"] = float(
+            du[~base_piqp].max()) if (~base_piqp).any() else 0.0
+        out[f"{kind}_torque_diff_max_baseline_piqp_ticks_nm"] = float(
+            du[base_piqp].max()) if base_piqp.any() else 0.0
+        # before the baseline's first piqp tick, both solve the same QPs exactly: the floor
+        # of a change in floating-point order (cond(P) ~ 2e11); after it, piqp's error enters
+        # the next ticks through the torque-change penalty
+        first = int(np.argmax(base_piqp)) if base_piqp.any() else len(du)
+        out[f"{kind}_torque_diff_max_before_first_piqp_nm"] = float(
+            du[:first].max()) if first else 0.0
+        out[f"{kind}_torque_diff_median_before_first_piqp_nm"] = float(
+            np.median(du[:first])) if first else 0.0
+        out[f"{kind}_modes_equal"] = bool(np.array_equal(ub.mode, ut.mode))
+        for what, label in (("tick", "wall"), ("tick_cpu", "cpu")):
+            rows.append((f"{kind} {label} median / p99 / max", " -> ".join(
+                " / ".join(f"{out[f'{kind}_{name}_{what}_{s}_ms']:.3f}"
+                           for s in ("median", "p99", "max"))
+                for name in ("baseline", "this")) + "  ({:.2f}x / {:.2f}x / {:.2f}x)".format(
+                *(out[f"{kind}_{what}_{s}_speedup_ratio"] for s in ("median", "p99", "max")))))
+        rows.append((f"{kind} ticks with piqp", "{} -> {}  ({:.1%} -> {:.1%})".format(
+            out[f"{kind}_baseline_piqp_ticks"], out[f"{kind}_this_piqp_ticks"],
+            out[f"{kind}_baseline_piqp_ratio"], out[f"{kind}_this_piqp_ratio"])))
+        if f"{kind}_baseline_on_baseline_piqp_ticks_cpu_median_ms" in out:
+            rows.append((f"{kind} cpu on the baseline's piqp ticks, median / p99", " -> ".join(
+                "{:.3f} / {:.3f}".format(
+                    out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_median_ms"],
+                    out[f"{kind}_{name}_on_baseline_piqp_ticks_cpu_p99_ms"])
+                for name in ("baseline", "this"))))
+        rows.append((f"{kind} max |du| all / closed-form / baseline-piqp ticks (N m)",
+                     "{:.2e} / {:.2e} / {:.2e}".format(
+                         out[f"{kind}_torque_diff_max_nm"],
+                         out[f"{kind}_torque_diff_max_closed_form_ticks_nm"],
+                         out[f"{kind}_torque_diff_max_baseline_piqp_ticks_nm"])))
+        rows.append((f"{kind} max / median |du| before the baseline's first piqp tick (N m)",
+                     "{:.2e} / {:.2e} ({} ticks)".format(
+                         out[f"{kind}_torque_diff_max_before_first_piqp_nm"],
+                         out[f"{kind}_torque_diff_median_before_first_piqp_nm"], first)))
+        rows.append((f"{kind} same mode every tick", out[f"{kind}_modes_equal"]))
+    print_table(f"side by side: baseline {rev} -> this tree (ms, {repeats} interleaved "
+                "repeats; ratio = baseline / this)", rows)
+    return out
+
+
+def _tight_optimum(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                   G: np.ndarray) -> np.ndarray | None:
+    """The QP min 1/2 x'Px + c'x, lo <= x <= hi, G x <= 0 by piqp converged to 1e-11 (None
+    when it does not get there)."""
+    import piqp
+
+    s = piqp.DenseSolver()
+    st = s.settings
+    st.eps_abs = st.eps_rel = st.eps_duality_gap_abs = st.eps_duality_gap_rel = 1e-11
+    st.max_iter = 500
+    st.verbose = False
+    s.setup(np.asfortranarray(P), c, None, None, np.asfortranarray(G), np.full(len(G), -np.inf),
+            np.zeros(len(G)), lo, hi)
+    return s.result.x.copy() if s.solve().value == 1 else None
+
+
+def _kkt(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray, G: np.ndarray,
+         x: np.ndarray) -> float:
+    """Stationarity residual of x, relative to the size of its terms: P x + c + A' lam with
+    lam >= 0 of the constraints active at x (within 1e-7) from non-negative least squares
+    (0 at an exact optimum, up to rounding)."""
+    from scipy.optimize import nnls
+
+    n = len(x)
+    eye = np.eye(n)
+    act = [-eye[i] for i in range(n) if x[i] - lo[i] < 1e-7]
+    act += [eye[i] for i in range(n) if hi[i] - x[i] < 1e-7]
+    act += [g for g in G if g @ x > -1e-7]
+    grad = P @ x + c
+    scale = float((np.abs(P) @ np.abs(x) + np.abs(c)).max())
+    if act:
+        A = np.array(act)
+        lam, _ = nnls(A.T, -grad)
+        grad = grad + A.T @ lam
+    return float(np.abs(grad).max()) / scale
+
+
+def _gap(P: np.ndarray, c: np.ndarray, x: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    """(largest torque difference N m, cost excess relative to the reference's cost)."""
+    cost, cost_ref = 0.5 * x @ P @ x + c @ x, 0.5 * ref @ P @ ref + c @ ref
+    return float(np.abs(x[:10] - ref[:10]).max()), float((cost - cost_ref) / abs(cost_ref))
+
+
+def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, Any]]],
+               baseline: Callable[[], Any] | None) -> dict[str, Any]:
+    """Untimed: each QP answer against the optimum of the same QP found by a tightly
+    converged piqp (1e-11). This tree: every tick (its ``OscQP.last_problem``). Baseline: the
+    ticks it sent to piqp (its ``_Solver.solve`` is wrapped to record the problem), when its
+    code has that shape. Torque differences and relative cost excess (< 0: cheaper than
+    piqp's optimum, i.e. piqp stopped short)."""
+    import importlib
+
+    from processes.osc.controller import SAFE, OscController
+
+    out: dict[str, Any] = {}
+    rows: list[tuple[str, object]] = []
+    for kind, states in runs.items():
+        osc = OscController()
+        du, ex, kkt, kkt_ref = [], [], [], []
+        for t, q, v, plan, cmd in states:
+            _, dbg = osc.update(t, q, v, plan, cmd)
+            if dbg.mode == SAFE or dbg.qp_status != 1:
+                continue
+            P, c, lo, hi, G = osc.qp.last_problem()
+            x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
+            kkt.append(_kkt(P, c, lo, hi, G, x))
+            ref = _tight_optimum(P, c, lo, hi, G)
+            if ref is not None:
+                d, e = _gap(P, c, x, ref)
+                du.append(d)
+                ex.append(e)
+                kkt_ref.append(_kkt(P, c, lo, hi, G, ref))
+        out[f"{kind}_this_vs_optimum_ticks"] = len(du)
+        out[f"{kind}_this_vs_optimum_torque_max_nm"] = float(max(du, default=0.0))
+        out[f"{kind}_this_vs_optimum_cost_excess_max_ratio"] = float(max(ex, default=0.0))
+        out[f"{kind}_this_kkt_residual_max_ratio"] = float(max(kkt, default=0.0))
+        out[f"{kind}_tight_piqp_kkt_residual_max_ratio"] = float(max(kkt_ref, default=0.0))
+        rows.append((f"{kind} this tree, {len(du)} ticks: max |u - u*| (N m), cost excess",
+                     f"{out[f'{kind}_this_vs_optimum_torque_max_nm']:.2e}, "
+                     f"{out[f'{kind}_this_vs_optimum_cost_excess_max_ratio']:.1e}"))
+        rows.append((f"{kind} KKT residual max: this tree / tight piqp",
+                     f"{out[f'{kind}_this_kkt_residual_max_ratio']:.1e} / "
+                     f"{out[f'{kind}_tight_piqp_kkt_residual_max_ratio']:.1e}"))
+        if baseline is None:
+            continue
+        try:
+            bqp = importlib.import_module("baseline_osc.qp")
+            solve = bqp._Solver.solve
+        except (ImportError, AttributeError):
+            continue  # another code shape: nothing to hook
+        seen: list[tuple[np.ndarray, ...]] = []
+
+        def hooked(self: Any, P: np.ndarray, c: np.ndarray, _solve: Any = solve,
+                   _seen: list = seen) -> Any:
+            status, iters, x = _solve(self, P, c)
+            if status == 1:
+                _seen.append((np.array(P), c.copy(), self.x_l.copy(), self.x_u.copy(),
+                              np.array(self.G), x.copy()))
+            return status, iters, x
+
+        bqp._Solver.solve = hooked
+        try:
+            _replay(states, baseline)
+        finally:
+            bqp._Solver.solve = solve
+        du, ex, kkt = [], [], []
+        for P, c, lo, hi, G, x in seen:
+            kkt.append(_kkt(P, c, lo, hi, G, x))
+            ref = _tight_optimum(P, c, lo, hi, G)
+            if ref is not None:
+                d, e = _gap(P, c, x, ref)
+                du.append(d)
+                ex.append(e)
+        out[f"{kind}_baseline_piqp_vs_optimum_ticks"] = len(du)
+        if du:
+            out[f"{kind}_baseline_piqp_vs_optimum_torque_median_nm"] = float(np.median(du))
+            out[f"{kind}_baseline_piqp_vs_optimum_torque_max_nm"] = float(max(du))
+            out[f"{kind}_baseline_piqp_vs_optimum_cost_excess_max_ratio"] = float(max(ex))
+            out[f"{kind}_baseline_piqp_kkt_residual_max_ratio"] = float(max(kkt))
+            rows.append((f"{kind} baseline piqp, {len(du)} ticks: |u - u*| median / max (N m),"
+                         " cost excess max, KKT residual max",
+                         f"{np.median(du):.2e} / {max(du):.2e}, {max(ex):.1e}, {max(kkt):.1e}"))
+    print_table("QP answers against the QP's optimum (piqp converged to 1e-11), untimed", rows)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -119,22 +401,35 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, help="write the figures to this JSON file")
     ap.add_argument("--ticks", type=int, default=4000,
                     help="ticks recorded per run (2 kHz: 4000 = 2 s of sim time)")
+    ap.add_argument("--baseline", metavar="REV", default=None,
+                    help="also time the OSC of git revision REV on the same states, "
+                         "interleaved with this tree's, and compare their torques (a "
+                         "revision with numba kernels compiles them first, ~12 s)")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="interleaved repeats of each version with --baseline (default 3)")
+    ap.add_argument("--optimality", action="store_true",
+                    help="also check (untimed) every QP answer against the optimum of the "
+                         "same QP from a tightly converged piqp, this tree's and, with "
+                         "--baseline, the baseline's piqp answers")
     args = ap.parse_args(argv)
 
-    figures: dict[str, Any] = {"ticks_per_run": args.ticks, "deadline_ms": DEADLINE_MS}
+    baseline = baseline_controller(args.baseline) if args.baseline else None  # fail early
+    figures: dict[str, Any] = {"ticks_per_run": args.ticks, "deadline_ms": DEADLINE_MS,
+                               "load_average_1min_start": os.getloadavg()[0]}
     all_ticks, all_cpu = [], []
+    runs = {}
     for kind in ("standing", "walking"):
-        states = _record(kind, args.ticks)
-        tick, cpu, solve, iters = _replay(states)
-        all_ticks.append(tick)
-        all_cpu.append(cpu)
-        figures.update(summarize(tick, f"{kind}_tick"))
-        figures.update(summarize(cpu, f"{kind}_tick_cpu"))
-        figures.update(summarize(solve, f"{kind}_solve"))
-        figures[f"{kind}_qp_iterations_median"] = float(np.median(iters))
-        # ticks where the unconstrained minimiser was feasible and piqp was skipped
-        figures[f"{kind}_unconstrained_ratio"] = float(np.mean(iters == 0))
-        figures[f"{kind}_deadline_miss_ratio"] = float(np.mean(tick > DEADLINE_MS))
+        states = runs[kind] = _record(kind, args.ticks)
+        r = _replay(states)
+        all_ticks.append(r.tick)
+        all_cpu.append(r.cpu)
+        figures.update(summarize(r.tick, f"{kind}_tick"))
+        figures.update(summarize(r.cpu, f"{kind}_tick_cpu"))
+        figures.update(summarize(r.solve, f"{kind}_solve"))
+        figures[f"{kind}_qp_iterations_median"] = float(np.median(r.iters))
+        # ticks solved in closed form (piqp skipped)
+        figures[f"{kind}_unconstrained_ratio"] = float(np.mean(r.iters == 0))
+        figures[f"{kind}_deadline_miss_ratio"] = float(np.mean(r.tick > DEADLINE_MS))
         figures[f"{kind}_recorded_s"] = len(states) * 0.0005
     tick = np.concatenate(all_ticks)
     figures.update(summarize(tick, "tick"))
@@ -144,6 +439,13 @@ def main(argv: list[str] | None = None) -> int:
 
     rows = [(k, v) for k, v in figures.items() if not k.endswith("_count")]
     print_table("OSC tick (build + solve), ms", rows)
+    if baseline is not None:
+        figures.update(side_by_side(runs, baseline, args.baseline, args.repeats))
+        figures["load_average_1min_end"] = os.getloadavg()[0]
+        print(f"\nload average (1 min): {figures['load_average_1min_start']:.2f} at the start, "
+              f"{figures['load_average_1min_end']:.2f} at the end")
+    if args.optimality:
+        figures.update(optimality(runs, baseline))
     write_json(args.json, "osc", figures)
     return 0
 
