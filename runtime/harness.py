@@ -101,7 +101,8 @@ class Harness:
         for role, typ in b.node.inputs.items():
             if role not in b.inputs:
                 raise KeyError(f"{b.node.name}: input role {role!r} is not bound to a channel")
-            policy = b.node.trigger_policy if role == b.node.trigger_role else "newest"
+            policy = (b.node.trigger_policy if role == b.node.trigger_role
+                      else b.node.input_policy.get(role, "newest"))
             # the same inbox a live subscription fills, so a node cannot tell the difference
             ports[role] = Subscription(
                 b.inputs[role], None if typ is bytes else typ, policy, capacity=HARNESS_QUEUE

@@ -117,7 +117,8 @@ class LiveRunner:
         )
         for role, typ in node.inputs.items():
             ch = self._channel(role, proc.inputs, "inputs")
-            policy = node.trigger_policy if role == node.trigger_role else "newest"
+            policy = (node.trigger_policy if role == node.trigger_role
+                      else node.input_policy.get(role, "newest"))
             if ch.udp is not None:
                 self.ports[role] = UdpReceiver(ch.udp, policy=policy)
             else:

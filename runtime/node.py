@@ -98,6 +98,10 @@ class Inbox(Protocol):
     def trigger(self) -> Any | None:
         """The message that caused this tick (message-driven nodes), else None."""
 
+    def pop(self, role: str) -> Any | None:
+        """The oldest message not taken yet on an ``each`` input (``Node.input_policy``),
+        else None."""
+
 
 class Node:
     """Base class for every process's algorithm shell.
@@ -115,6 +119,9 @@ class Node:
     #: "newest": tick once on the newest message, skipping stale ones (control loops);
     #: "each": tick once per message, in order (e.g. integrating every IMU packet)
     trigger_policy: TriggerPolicy = "newest"
+    #: the policy of the other inputs: "newest" (the default: ``inbox.latest``) or "each"
+    #: (every message, in order: ``inbox.pop``), as a target PC reads every torque packet
+    input_policy: Mapping[str, TriggerPolicy] = {}
     #: with "each": the most messages kept waiting when the loop falls behind its input; older
     #: ones are dropped and counted as stale, so latency stays bounded (None: keep them all)
     max_backlog: int | None = None

@@ -127,3 +127,6 @@ class PortInbox:
 
     def trigger(self) -> Any | None:
         return self._trigger
+
+    def pop(self, role: str) -> Any | None:
+        return self._ports[role].pop()

@@ -318,6 +318,9 @@ class SimNode(Node):
         else:
             self.trigger_role = None
             self.trigger_timeout_s = None
+            # periodic: every torque packet that came since the last tick is read, in order
+            # (counted, the newest applied), as the target PC reads its socket
+            self.input_policy = {"command": "each"}
         render = settings.camera_render
         if render == "auto":  # inline in lockstep: frames are deterministic
             render = "process" if self.wall_clock else "inline"
@@ -389,7 +392,8 @@ class SimNode(Node):
         tpc = self.tpc
         skipped = 0
         if self.trigger_role is None:
-            data = inbox.latest("command") if inbox.is_fresh("command") else None
+            while (data := inbox.pop("command")) is not None:
+                tpc.take(data)
             now = ctx.now_utime  # the scheduled time: a jump of several periods = skipped slots
             if self._prev_utime is not None and self._period_us > 0:
                 skipped = max(0, (now - self._prev_utime) // self._period_us - 1)
@@ -402,7 +406,7 @@ class SimNode(Node):
                 self.catch_up_steps += extra * steps
                 self.lost_slots += skipped - extra
                 steps += extra * steps
-            out = tpc.realtime_cycle(data, steps)
+            out = tpc.realtime_cycle(None, steps)
         else:
             out = tpc.lockstep_cycle(inbox.trigger())
         if self.trigger_role is not None:
@@ -411,6 +415,7 @@ class SimNode(Node):
             ctx.now_utime = self.core.utime
         if out is not None:
             ctx.publish("robot_output", bytes(out))
+        self.core.prepare()  # the next step's first half, once the state is on its way
         self._publish_extras(ctx)
         if self.core.utime >= self._next_judge_us:
             self._next_judge_us = self.core.utime + JUDGE_PERIOD_US

@@ -95,6 +95,7 @@ class SimCore:
         self._v_quat = d.qpos[3:7]
         self._v_gyro = d.qvel[3:6]
         self._v_accel = d.sensordata[self.idx.accel_adr:self.idx.accel_adr + 3]
+        self._prepared = False
         self.reset()
 
     # -- state -----------------------------------------------------------------------------
@@ -109,6 +110,7 @@ class SimCore:
             self.d.mocap_quat[self.idx.holder_mocap] = self.d.qpos[3:7]
             self.d.eq_active[self.idx.holder_eq] = self.cfg.holder.enabled
         mujoco.mj_forward(self.m, self.d)
+        self._prepared = True  # mj_forward did what mj_step1 would
         self.torque_cmd[:] = 0.0
         self.last_command_time: float | None = None
         self.holder_engaged = self.cfg.holder.enabled
@@ -154,6 +156,7 @@ class SimCore:
         self.holder_engaged = False
         if self.idx.holder_eq >= 0:
             self.d.eq_active[self.idx.holder_eq] = 0
+            self._prepared = False  # the constraints are made in mj_step1: make them again
 
     # -- stepping --------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
@@ -169,8 +172,22 @@ class SimCore:
                 d.ctrl[:] = 0.0
             else:
                 np.divide(self.torque_cmd, self.idx.gear, out=d.ctrl)  # MuJoCo clamps ctrl
-            mujoco.mj_step(self.m, d)
+            # mj_step = mj_step1 (positions, velocities, collisions) + mj_step2 (actuation,
+            # acceleration, integration), bit for bit with the Euler integrator; step1 for the
+            # next step may have run already (``prepare``), after the state went out
+            if not self._prepared:
+                mujoco.mj_step1(self.m, d)
+            mujoco.mj_step2(self.m, d)
+            self._prepared = False
             self.steps += 1
+
+    def prepare(self) -> None:
+        """Run the first half of the next physics step now (``mj_step1``), so that the state
+        packet can go out as soon as the integration is done and this work overlaps with the
+        NUC's; the physics is the same as stepping with ``mj_step``."""
+        if not self._prepared:
+            mujoco.mj_step1(self.m, self.d)
+            self._prepared = True
 
     def _apply_push(self, push: PushConfig) -> None:
         """The configured shove on the pelvis, inside its window of sim time (per step call:
@@ -324,12 +341,20 @@ class TargetPC:
         self.out.status = self.status_bits()
         return self.out.encode(self.link.next_seq(), self.link.last_peer_seq)
 
+    def take(self, data: bytes | bytearray | memoryview) -> bool:
+        """One received torque datagram: decoded, counted, and its torques made the newest
+        command (False when malformed: counted, never raised)."""
+        if not self.receive(data):
+            return False
+        self.core.command(self.inp.torque, self.inp.flags)
+        return True
+
     def realtime_cycle(self, data: bytes | bytearray | memoryview | None, steps: int = 1
                        ) -> memoryview:
         """One tick: take the newest command if any, step ``steps`` times (1 at 2 kHz), return
-        the state."""
-        if data is not None and self.receive(data):
-            self.core.command(self.inp.torque, self.inp.flags)
+        the state (send it, then call ``core.prepare``)."""
+        if data is not None:
+            self.take(data)
         self.core.step(steps)
         return self.encode_state()
 

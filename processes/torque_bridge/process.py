@@ -1,11 +1,19 @@
-"""The torque bridge process: newest torque command in, one UDP torque packet per robot state.
+"""The torque bridge process: torque commands in, UDP torque packets to the target PC out.
 
-Inputs ``torque`` (torque_command_t, newest) and ``state`` (robot_state_t, the trigger, newest):
-like the robot's 2 kHz cycle, each state answers with one packet, whose ``ack`` is the ``seq``
-of the target-PC packet the state came from (``processes.state_estimator.process``), so the
-target PC can count round trips and run in lockstep. Outputs ``robot_input`` (bytes, UDP) and
-``applied_input`` (applied_input_t: torques sent, as commanded, source and counters), stamped
-with the state's ``utime``.
+Inputs ``torque`` (torque_command_t) and ``state`` (robot_state_t); outputs ``robot_input``
+(bytes, UDP) and ``applied_input`` (applied_input_t: torques sent, as commanded, source and
+counters), stamped with the state's ``utime``. Each packet's ``ack`` is the ``seq`` of the
+target-PC packet of the newest state (``processes.state_estimator.process``), so the target PC
+counts round trips and can run in lockstep. What sends a packet (``params.answer_on``):
+
+* ``command`` (real time): each torque command, at once, as SYSTEM.md's bridge ("driven by
+  each torque command, plus a watchdog"): the torque computed from a state reaches the target
+  PC in the same 0.5 ms cycle when the chain keeps up. When commands stop, a watchdog tick
+  every ``WATCHDOG_TICK_S`` of wall time answers the newest state with the fallback once no
+  fresh command is left (the watchdog counts in state sim time, as always).
+* ``state``: each robot state, with the newest command.
+* ``torque`` (lockstep): each torque answers the state it was computed from, sending the
+  torque of the state before (the robot's one-tick latency, made exact).
 """
 
 from __future__ import annotations
@@ -34,6 +42,9 @@ from .bridge import DEFAULT_GAINS_FILE, SOURCE_COMMAND, BridgeParams, TorqueBrid
 
 log = logging.getLogger(__name__)
 
+#: answer_on command: with no command for this long (wall), tick anyway to run the watchdog
+WATCHDOG_TICK_S = 0.002
+
 
 @functools.cache
 def _default_motor_dofs() -> tuple[int, ...]:
@@ -61,6 +72,12 @@ class TorqueBridgeNode(Node):
 
     def __init__(self, params: BridgeParams | None = None, answer_on: str = "state") -> None:
         self.params = params or BridgeParams()
+        self.answer_on = answer_on
+        self.trigger_timeout_s: float | None = None
+        if answer_on == "command":
+            self.trigger_role = "torque"
+            self.trigger_timeout_s = WATCHDOG_TICK_S
+            self._answered_utime = -1
         if answer_on == "torque":
             # lockstep: answer a state once the controller has run on it, so the target PC
             # steps only after the whole chain (estimator -> OSC -> here) has seen its state;
@@ -84,6 +101,20 @@ class TorqueBridgeNode(Node):
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:
         b = self.bridge
+        if self.answer_on == "command":
+            cmd = inbox.trigger()
+            state = inbox.latest("state")
+            if cmd is not None:
+                b.on_command(cmd.torque, cmd.header.utime)
+            elif state is None or int(state.header.utime) <= self._answered_utime:
+                return  # a watchdog tick with no new state: nothing to answer
+            if state is None:  # a command before any state: answer at its own time
+                self._send(ctx, b, int(cmd.header.utime), None, 0)
+                return
+            utime = max(int(state.header.utime), int(cmd.header.utime) if cmd else 0)
+            self._answered_utime = int(state.header.utime)
+            self._send(ctx, b, utime, state, packet_seq_of(state))
+            return
         if self.trigger_role == "torque":
             cmd = inbox.trigger()
             state = inbox.latest("state")
@@ -101,12 +132,16 @@ class TorqueBridgeNode(Node):
                 cmd = inbox.latest("torque")
                 if cmd is not None:
                     b.on_command(cmd.torque, cmd.header.utime)
-        v = state.v
+        self._send(ctx, b, int(state.header.utime), state, packet_seq_of(state))
+
+    def _send(self, ctx: Context, b: TorqueBridge, utime: int, state: robot_state_t | None,
+              ack: int) -> None:
+        """The torques for the robot at ``utime`` (watchdog, clamps), as one packet."""
+        v = state.v if state is not None else ()
         if self._dofs and len(v) > self._dof_max:
             self._mv[:] = [v[i] for i in self._dofs]
         else:
-            self._mv[:] = np.nan  # malformed state: the damping fallback degrades to zero
-        utime = int(state.header.utime)
+            self._mv[:] = np.nan  # no or a malformed state: the damping fallback gives zero
         trips, rejects = b.watchdog_trips, b.nan_rejects
         tau = b.step(utime, self._mv)
         if b.watchdog_trips != trips:
@@ -118,7 +153,7 @@ class TorqueBridgeNode(Node):
         pkt.torque[:] = tau
         release = self.params.release_holder and b.source == SOURCE_COMMAND
         pkt.flags = FLAG_RELEASE_HOLDER if release else 0
-        ctx.publish("robot_input", pkt.to_bytes(self.link.next_seq(), packet_seq_of(state)))
+        ctx.publish("robot_input", pkt.to_bytes(self.link.next_seq(), ack))
         if not ctx.due("applied_input"):  # decimated (processes.torque_bridge.output_rate_hz)
             return
         m = self._msg
@@ -156,15 +191,16 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     (torque in lockstep profiles, state otherwise)."""
     path = process_gains(proc, DEFAULT_GAINS_FILE, allow_params=True)
     answer = str(proc.params.get("answer_on", "auto"))
+    choices = ("auto", "command", "state", "torque")
     for key in proc.params:
         if key != "answer_on":
             raise ConfigError(str(proc.source_file), proc.key("params", str(key)),
                               "unknown parameter", "answer_on")
-    if answer not in ("auto", "state", "torque"):
+    if answer not in choices:
         raise ConfigError(str(proc.source_file), proc.key("params", "answer_on"),
-                          f"unknown value {answer!r}", "auto, state, torque")
+                          f"unknown value {answer!r}", ", ".join(choices))
     if answer == "auto":
-        answer = "torque" if profile.mode == "lockstep" else "state"
+        answer = "torque" if profile.mode == "lockstep" else "command"
     node = TorqueBridgeNode(BridgeParams.from_yaml(path), answer)
     node.name = proc.name
     return node

@@ -28,6 +28,7 @@ class Driver:
         self._latest: dict[str, Any] = {}
         self._fresh: set[str] = set()
         self._trigger: Any | None = None
+        self._queue: dict[str, list[Any]] = defaultdict(list)
         node.setup(self)
 
     # Context
@@ -48,14 +49,20 @@ class Driver:
     def trigger(self) -> Any | None:
         return self._trigger
 
+    def pop(self, role: str) -> Any | None:
+        q = self._queue.get(role)
+        return q.pop(0) if q else None
+
     def tick(self, command: bytes | None = None) -> None:
         """One tick; ``command`` arrives just before it (and triggers it if message-driven)."""
         if command is not None:
             self._latest["command"] = command
             self._fresh.add("command")
+            self._queue["command"].append(command)
         self._trigger = command if self.node.trigger_role == "command" else None
         self.node.tick(self, self)
         self._fresh.clear()
+        self._queue.clear()
         if self.node.period_s and self.node.trigger_role is None:
             self.now_utime += round(self.node.period_s * 1e6)
 

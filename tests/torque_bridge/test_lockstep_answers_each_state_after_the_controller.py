@@ -51,9 +51,11 @@ def test_a_state_is_answered_only_by_its_own_torque_with_the_previous_command():
         assert np.allclose(tau, 0.0 if k == 1 else float(k - 1))
 
 
-def test_auto_answers_on_torque_in_lockstep_profiles_and_on_state_otherwise():
+def test_auto_answers_each_command_in_real_time_and_each_torque_in_lockstep():
     sim = load_profile(HW_CONFIG_DIR / "sim.yaml")
-    assert make_node(sim.processes["torque_bridge"], sim).trigger_role == "state"
+    node = make_node(sim.processes["torque_bridge"], sim)
+    assert node.answer_on == "command" and node.trigger_role == "torque"
+    assert node.trigger_timeout_s is not None  # the watchdog ticks when commands stop
     exp = load_profile(HW_CONFIG_DIR / "experiment.yaml")
     assert make_node(exp.processes["torque_bridge"], exp).trigger_role == "torque"
 
