@@ -87,6 +87,7 @@ class Child:
     deadline_misses: int = 0
     last_msg_ns: int = 0  # its newest TIMING message (its heartbeat)
     status: str = ""  # its node's status line, from TIMING
+    counters: dict[str, float] = field(default_factory=dict)  # its node's, from TIMING
     health: int = 0
     fault: str = ""  # the first fault it reported (kept: a fall is not undone)
     affinity: str = "not requested"
@@ -219,6 +220,7 @@ class Supervisor:
             child.loop_rate_hz = msg.rate_hz
         child.deadline_misses = msg.deadline_misses_total
         child.status = msg.status
+        child.counters = dict(zip(msg.counter_names, msg.counter_values, strict=False))
         child.health = msg.health
         if msg.health == HEALTH_FAULT and not child.fault:
             child.fault = msg.status
@@ -570,9 +572,11 @@ class Supervisor:
         total = self.cpu_percent
         for c in self.children.values():
             age = f"{(now_ns - c.last_msg_ns) / 1e9:.1f}" if c.last_msg_ns else "-"
-            text = c.detail or c.status
-            if c.fault and c.fault != text:
-                text = f"{text} (fault: {c.fault})"
+            text = c.detail or c.status.split(" | ")[0]  # the node's own first part
+            if c.fault and c.fault != c.status:
+                text = f"{text} (fault: {c.fault.split(' | ')[0]})"
+            if len(text) > 90:
+                text = text[:87] + "..."
             rows.append(
                 f"{c.proc.name:<16}{c.state:<11}{c.pid or '-':>7}{c.restarts:>4}"
                 f"{c.cpu_percent:>7.1f}{c.rss_mb:>7.0f}{c.loop_rate_hz:>9.1f}"
@@ -585,9 +589,20 @@ class Supervisor:
                     f"(% of one core; this machine has {os.cpu_count()} cores)")
         return "\n".join(rows)
 
+    def robot_lines(self) -> list[str]:
+        """What the robot did, from the process that knows it (the sim's truth: distance,
+        falls) and the controller's mode, for the summary."""
+        lines = []
+        for c in self.children.values():
+            if "walked_m" in c.counters:
+                lines.append(f"robot: {c.status.split(' | ')[0]}  (the {c.proc.name}'s truth)")
+            elif "mode" in c.counters:
+                lines.append(f"controller: {c.status}  ({c.proc.name})")
+        return lines
+
     def _print_table(self, live: bool) -> None:
         text = f"[{self.profile.name}] {self.state}, up {time.monotonic() - self.t0:.0f} s\n"
-        text += self.table() + "\n"
+        text += self.table() + "\n" + "".join(line + "\n" for line in self.robot_lines())
         if live:
             self.out.write("\x1b[H\x1b[J" + text)
         else:
@@ -600,6 +615,8 @@ class Supervisor:
             f"{time.monotonic() - self.t0:.1f} s (logs in {self.log_dir}):\n"
         )
         self.out.write(self.table() + "\n")
+        for line in self.robot_lines():
+            self.out.write(line + "\n")
         bad = [
             c.proc.name
             for c in self.children.values()

@@ -580,6 +580,12 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
         settings = replace(settings, camera_render=v)
     fh = _bool(file, proc.key("params", "publish_footholds"),
                proc.params.get("publish_footholds", False))
+    if "push" in proc.params:  # a push set in the profile (hw_config/push.yaml) wins
+        try:
+            push = _push(file, proc.params["push"])
+        except ConfigError as exc:
+            raise ConfigError(file, proc.key("params", exc.key), exc.problem, exc.allowed) from None
+        settings = replace(settings, sim=replace(settings.sim, push=push))
     rate = proc.rate_hz if proc.rate_hz else 2000.0
     node = SimNode(settings, profile.mode, rate, drive, fh, profile.rtf)
     node.name = proc.name

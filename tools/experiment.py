@@ -38,7 +38,7 @@ from runtime.config_types import Profile
 from runtime.harness import Binding, Harness
 from runtime.node import Node
 from tools.benchmarks.common import print_table, write_json
-from tools.report import analyse, load_budgets, print_loops
+from tools.report import analyse, load_budgets, print_cpu, print_loops, print_realtime
 
 EXPERIMENTS = ("flat", "stairs", "beam", "stones")
 FALL_HEIGHT_M = 0.6
@@ -67,6 +67,8 @@ class Trial:
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops
+    cpu: dict[str, Any] = field(default_factory=dict)  # live runs: the report's CPU table
+    realtime: dict[str, Any] = field(default_factory=dict)  # live runs: real-time checks
     notes: list[str] = field(default_factory=list)
 
 
@@ -262,6 +264,7 @@ def run_live_trial(
     base_profile: Path = HW_CONFIG_DIR / "sim.yaml",
     log_dir: Path | None = None,
     depth: float | None = None,
+    dashboard: bool = False,
 ) -> Trial:
     """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
@@ -307,7 +310,7 @@ def run_live_trial(
         out = (logs / "supervisor.txt").open("w")
         sup = subprocess.Popen(
             [sys.executable, "-m", "tools.cli", "launch", str(prof_path), "--no-live", "--log",
-             "--log-dir", str(logs)],
+             "--log-dir", str(logs), *(["--dashboard"] if dashboard else [])],
             stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
         )
         # sim time runs at most at wall-clock speed; lockstep on 2 busy cores is much slower
@@ -346,6 +349,8 @@ def run_live_trial(
         if log_file.exists():
             rep = analyse(log_file, load_budgets(HW_CONFIG_DIR / "budgets.yaml"))
             trial.timing = rep["loops"]
+            trial.cpu = rep["cpu"]
+            trial.realtime = rep["realtime"]
         else:
             trial.notes.append("no LCM log was recorded: no timing summary")
     _verdict(trial, judge, launch)
@@ -407,6 +412,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--log-dir", type=Path, default=None,
                     help="--launch: keep the LCM log and process logs here")
+    ap.add_argument("--dashboard", action="store_true",
+                    help="--launch: with the Rerun dashboard recording too (its CPU is in the "
+                         "report's CPU table)")
     args = ap.parse_args(argv)
     if args.dmin is not None and args.name != "stones":
         ap.error("--dmin is for the stones experiment")
@@ -426,7 +434,8 @@ def main(argv: list[str] | None = None) -> int:
         trials = [
             run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                            args.vx, args.launch, base,
-                           args.log_dir / f"trial{i}" if args.log_dir else None, args.depth)
+                           args.log_dir / f"trial{i}" if args.log_dir else None, args.depth,
+                           args.dashboard)
             for i in range(args.trials)
         ]
     else:
@@ -436,10 +445,13 @@ def main(argv: list[str] | None = None) -> int:
             for i in range(args.trials)
         ]
     for tr in trials:
-        rows = {k: v for k, v in asdict(tr).items() if k not in ("notes", "timing")}
+        rows = {k: v for k, v in asdict(tr).items()
+                if k not in ("notes", "timing", "cpu", "realtime")}
         print_table(f"experiment {tr.experiment}, seed {tr.seed}", rows)
         if tr.timing:  # the live run's loops, as `cassie report` prints them from its log
             print_loops(tr.timing)
+            print_cpu(tr.cpu)
+            print_realtime(tr.realtime)
         for note in tr.notes:
             print(f"  note: {note}")
     ok = sum(t.success for t in trials)
@@ -463,9 +475,20 @@ def main(argv: list[str] | None = None) -> int:
     if args.launch:
         figures["mode"] = args.launch
         figures["description"] = f"{args.name} with cassie launch in {args.launch} mode"
-        for key, row in trials[0].timing.items():
-            for k, v in row.items():
-                figures[f"{key}/{k}"] = v
+        for i, tr in enumerate(trials):
+            pre = "" if len(trials) == 1 else f"trial{i}/"
+            for key, row in tr.timing.items():
+                for k, v in row.items():
+                    figures[f"{pre}{key}/{k}"] = v
+            for name, row in (tr.cpu.get("processes") or {}).items():
+                figures[f"{pre}cpu/{name}/share"] = row["cpu_share"]
+            if tr.cpu:
+                figures[f"{pre}cpu/total_share"] = tr.cpu["total_share"]
+            for k in ("rtf", "states_per_packet", "torques_per_step"):
+                if k in tr.realtime:
+                    figures[f"{pre}realtime/{k}_ratio"] = tr.realtime[k]
+            figures[f"{pre}fell"] = tr.fell
+            figures[f"{pre}mean_velocity_mps"] = tr.mean_velocity_mps
     print(f"\n{ok}/{len(trials)} trials succeeded")
     write_json(args.json, f"experiment_{args.name}", figures)
     return 0
