@@ -10,12 +10,10 @@ preallocated; the returned ``Estimate`` is the same object every call (copy to k
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field
 
 import mujoco
-import numba
 import numpy as np
 
 from runtime.cassie_packets import OUTPUT_LAYOUT, OutputPacket
@@ -23,6 +21,7 @@ from runtime.cassie_packets import OUTPUT_LAYOUT, OutputPacket
 from .alip_filter import AlipKalman
 from .contact import SpringContact
 from .inekf import ContactInEKF
+from .kernels import PITCH_OFF, PITCH_ON, _foot_speeds, _in_bounds, _sole_points  # noqa: F401
 from .kinematics import LegKinematics
 from .params import EstimatorParams
 
@@ -32,9 +31,6 @@ log = logging.getLogger(__name__)
 STATUS_INITIALIZING = 1 << 0  # first packets: the filter is converging
 STATUS_NO_CONTACT = 1 << 1  # neither foot in contact: position is IMU dead reckoning
 STATUS_PACKET_GAP = 1 << 2  # packets were lost just before this one
-#: sine of the foot pitch above which the heel or toe bears the load, and back to mid-foot
-PITCH_ON = 0.03
-PITCH_OFF = 0.015
 #: consecutive packets whose time does not advance before the target PC counts as restarted
 RESTART_AFTER = 200
 
@@ -49,55 +45,6 @@ if OUTPUT_LAYOUT.fields["joint_vel"][1] + 8 * OUTPUT_LAYOUT["joint_vel"].shape[0
     raise ImportError("runtime.cassie_packets layout changed: update the estimator's checks")
 _FIELD_OF = [f"{f}[{i}]" for f in _FIELDS for i in range(OUTPUT_LAYOUT[f].shape[0])]
 
-
-@numba.njit(cache=True, nogil=True)
-def _in_bounds(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, qn_lo: float,
-               qn_hi: float) -> bool:
-    """Every double within its bounds and the IMU quaternion (``x[0:4]``) of unit norm."""
-    for i in range(x.size):
-        if not (lo[i] <= x[i] <= hi[i]):
-            return False
-    n = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]
-    return qn_lo <= n <= qn_hi
-
-
-@numba.njit(cache=True, nogil=True)
-def _sole_points(foot_pos: np.ndarray, foot_axis: np.ndarray, up: np.ndarray,
-                 r_imu: np.ndarray, radius: float, half: float, modes: np.ndarray,
-                 h: np.ndarray, switched: np.ndarray) -> None:
-    """Per foot: pick the bearing sole point (mid-sole, or heel/toe when pitched, with
-    hysteresis), write it into ``h`` (IMU frame) and whether it changed into ``switched``."""
-    for k in range(2):
-        sp = (foot_axis[k, 0] * up[0] + foot_axis[k, 1] * up[1]
-              + foot_axis[k, 2] * up[2])  # sine of the foot pitch
-        mode = modes[k]
-        if mode == 0 and abs(sp) > PITCH_ON:
-            mode = -1 if sp > 0 else 1
-        elif mode != 0 and (abs(sp) < PITCH_OFF or mode * sp > 0):
-            mode = 0 if abs(sp) < PITCH_ON else (-1 if sp > 0 else 1)
-        switched[k] = mode != modes[k]
-        modes[k] = mode
-        for i in range(3):
-            h[k, i] = (foot_pos[k, i] - r_imu[i] - radius * up[i]
-                       + mode * half * foot_axis[k, i])
-
-
-@numba.njit(cache=True, nogil=True)
-def _foot_speeds(R: np.ndarray, v_imu: np.ndarray, w: np.ndarray, foot_pos: np.ndarray,
-                 foot_vel: np.ndarray, r_imu: np.ndarray, out: np.ndarray) -> None:
-    """Each foot's speed in the world: v_imu + R (w x (p - r_imu) + v_rel), with p and v_rel
-    the foot's position and velocity relative to the pelvis (pelvis frame, IMU aligned)."""
-    for k in range(2):
-        e0, e1, e2 = (foot_pos[k, 0] - r_imu[0], foot_pos[k, 1] - r_imu[1],
-                      foot_pos[k, 2] - r_imu[2])
-        b0 = w[1] * e2 - w[2] * e1 + foot_vel[k, 0]
-        b1 = w[2] * e0 - w[0] * e2 + foot_vel[k, 1]
-        b2 = w[0] * e1 - w[1] * e0 + foot_vel[k, 2]
-        s = 0.0
-        for i in range(3):
-            vi = v_imu[i] + R[i, 0] * b0 + R[i, 1] * b1 + R[i, 2] * b2
-            s += vi * vi
-        out[k] = math.sqrt(s)
 
 class RejectedPacket(ValueError):
     """A packet with values outside the physically plausible ranges; the message says which."""
