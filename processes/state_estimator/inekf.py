@@ -97,7 +97,7 @@ class ContactInEKF:
         self.v[:] = v
         self.p[:] = p
         self.d[:] = p
-        self.contact = [False, False]
+        self.contact[0] = self.contact[1] = False  # in place: it may be a view (fused step)
         self.P[:] = 0.0
         diag = np.zeros(DIM)
         diag[ROT] = n.init_rot**2

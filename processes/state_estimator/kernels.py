@@ -1,20 +1,44 @@
-"""Every compiled kernel of the state estimator, in one file.
+"""Every compiled kernel of the state estimator, and the whole per-packet step as one kernel.
 
 numba caches each kernel on disk and revalidates the cache against the file the kernel is
-defined in, not the files of the kernels it calls: a kernel that calls others (as a fused
-per-packet step will call all of them) must live in the same file as they do, or a change to
-one of them would leave a stale compiled copy in the caller's cache.
+defined in, not the files of the kernels it calls: the fused step (``run``) calls all of the
+others, so they all live in this one file (a change to any of them recompiles the step).
 
-The kernels are used by ``kinematics.LegKinematics``, ``inekf.ContactInEKF`` and
-``estimator.CassieEstimator``; each works in place on preallocated arrays.
+The per-stage kernels (leg kinematics, InEKF propagation and correction, range check, sole
+points, foot speeds) are used by the modular estimator (``kinematics.LegKinematics``,
+``inekf.ContactInEKF``, ``estimator.CassieEstimator`` with ``fused=False``), which is the
+reference the fused step is tested against. ``run`` does one packet's whole work in one call:
+packet validation and range checks, leg kinematics (MuJoCo's ``mj_kinematics``, ``mj_comPos``,
+``mj_comVel`` and ``mj_subtreeVel`` called through their C entry points), InEKF propagation,
+contact, correction, the full ``q``/``v``, and on the laptop's packets the CoM, momentum and
+ALIP Kalman filter; it works in place on a few packed buffers (layout below) whose slices the
+Python objects hold as views. On the live 2 kHz path, Python's and numba's per-call costs on
+small arrays were most of a tick (and on this VM every wake-up runs with cold caches, so a
+tick's cost grows with the code and objects it touches).
 """
 
 from __future__ import annotations
 
+import ctypes
+import glob
 import math
+import os
 
+import mujoco
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
+
+from runtime.cassie_packets import (
+    KIND_OUTPUT,
+    NUM_JOINTS,
+    NUM_MOTORS,
+    OUTPUT_LAYOUT,
+    OUTPUT_SIZE,
+    PROTOCOL_VERSION,
+)
 
 _jit = numba.njit(cache=True, nogil=True)
 _fjit = numba.njit(cache=True, nogil=True, error_model="numpy")  # the InEKF: NaN, not raise
@@ -422,3 +446,594 @@ def _foot_speeds(R: np.ndarray, v_imu: np.ndarray, w: np.ndarray, foot_pos: np.n
             s += vi * vi
         out[k] = math.sqrt(s)
 
+
+# == the fused per-packet step ===============================================================
+# -- calling MuJoCo's C functions from compiled code -----------------------------------------
+@intrinsic
+def _call2(typingctx, fn, a, b):  # type: ignore[no-untyped-def]
+    """``fn(a, b)`` for a C function ``void fn(void *, void *)`` at address ``fn`` (int64
+    addresses: cacheable, unlike a ctypes function object, whose address is baked in)."""
+    sig = types.void(types.int64, types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        f, x, y = args
+        vp = ir.IntType(8).as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp])
+        builder.call(builder.inttoptr(f, fnty.as_pointer()),
+                     [builder.inttoptr(x, vp), builder.inttoptr(y, vp)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _f8_ptr(typingctx, addr):  # type: ignore[no-untyped-def]
+    """The float64 pointer at address ``addr`` (for ``numba.carray`` over MjData's arrays)."""
+    sig = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+
+    return sig, codegen
+
+
+#: the MuJoCo functions ``run`` calls, all ``void f(const mjModel*, mjData*)`` but the last,
+#: ``void mju_mat2Quat(mjtNum quat[4], const mjtNum mat[9])``
+MJ_FUNCTIONS = ("mj_kinematics", "mj_comPos", "mj_comVel", "mj_subtreeVel", "mju_mat2Quat")
+
+
+def mujoco_functions() -> list[int]:
+    """Addresses of ``MJ_FUNCTIONS`` in the libmujoco the ``mujoco`` package has loaded."""
+    libs = sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so*")))
+    if not libs:
+        raise RuntimeError("the mujoco package's libmujoco.so was not found next to it: the "
+                           "fused estimator step calls MuJoCo's C functions directly")
+    try:  # the copy already loaded by the bindings (RTLD_NOLOAD), never a second one
+        lib = ctypes.CDLL(libs[-1], mode=os.RTLD_NOLOAD | os.RTLD_LAZY)
+    except OSError:
+        lib = ctypes.CDLL(libs[-1])
+    return [int(ctypes.cast(getattr(lib, name), ctypes.c_void_p).value or 0)
+            for name in MJ_FUNCTIONS]
+
+
+# -- the packed buffers -----------------------------------------------------------------------
+def _offsets(spec: tuple[tuple[str, int], ...]) -> tuple[dict[str, int], int]:
+    out, o = {}, 0
+    for name, n in spec:
+        out[name] = o
+        o += n
+    return out, o
+
+
+#: ``W`` (uint8, 480): the datagram at byte 4, so that its doubles (from byte 12 of the packet)
+#: are 8-byte aligned: as float64, packet byte ``b`` is element ``(b + 4) // 8``
+W_SIZE = OUTPUT_SIZE + 4
+_PKT = {name: (OUTPUT_LAYOUT.fields[name][1] + 4) // 8 for name in (
+    "imu_quat", "imu_gyro", "imu_accel", "motor_pos", "motor_vel", "motor_torque", "joint_pos",
+    "joint_vel", "task_time_s")}
+W_QUAT, W_GYRO, W_ACCEL = _PKT["imu_quat"], _PKT["imu_gyro"], _PKT["imu_accel"]
+W_MPOS, W_MVEL, W_MTAU = _PKT["motor_pos"], _PKT["motor_vel"], _PKT["motor_torque"]
+W_JPOS, W_JVEL = _PKT["joint_pos"], _PKT["joint_vel"]
+W_UTIME = (OUTPUT_LAYOUT.fields["utime"][1] + 4) // 8  # as int64
+W_VERSION = OUTPUT_LAYOUT.fields["version"][1] + 4  # as uint8
+W_KIND = OUTPUT_LAYOUT.fields["kind"][1] + 4
+W_STATUS = (OUTPUT_LAYOUT.fields["status"][1] + 4) // 4  # as uint32
+#: the doubles the range check bounds (imu_quat .. joint_vel) and those checked finite (all)
+W_NCHECK = _PKT["task_time_s"] - W_QUAT
+W_NFINITE = W_NCHECK + 1
+if (any((OUTPUT_LAYOUT.fields[f][1] + 4) % 8 for f in _PKT)
+        or OUTPUT_LAYOUT.fields["utime"][1] + 8 != OUTPUT_LAYOUT.fields["imu_quat"][1]
+        or OUTPUT_LAYOUT.fields["task_time_s"][1] + 8 != OUTPUT_LAYOUT.fields["overruns"][1]
+        or [f for f in OUTPUT_LAYOUT.names if OUTPUT_LAYOUT[f].base.kind == "f"] != list(_PKT)
+        or (OUTPUT_LAYOUT.fields["status"][1] + 4) % 4):
+    raise ImportError("runtime.cassie_packets layout changed: update the fused estimator step")
+
+#: ``S`` (float64): the estimator's state and outputs. Fixed-size slots at constant offsets;
+#: the model-sized vectors (``S_DYNAMIC``) follow, at offsets kept in ``CI``
+_S_SPEC = (
+    ("R", 9), ("V", 3), ("P", 3), ("D", 6), ("COV", DIM * DIM), ("SCRATCH", 9),  # InEKF
+    ("GYRO_PREV", 3), ("H", 6), ("FOOT_SPEED", 2), ("QUAT", 4), ("VB", 3),  # estimator
+    ("FOOT_POS", 6), ("FOOT_AXIS", 6), ("FOOT_VEL", 6), ("SPRING", 4),  # kinematics
+    ("COM_B", 3), ("COMVEL_B", 3), ("ANGMOM_B", 3),
+    ("FORCE", 2),  # contact
+    ("EST_FORCE", 2), ("EST_SPRING", 2), ("ALIP_X", 4), ("ALIP_RAW", 4), ("STANCE_POS", 3),
+    ("EST_COM", 3), ("EST_COMVEL", 3),  # the Estimate
+    ("KF_X", 4), ("KF_P", 16), ("KF_F", 16), ("KF_Q", 16), ("KF_R", 16), ("KF_DT", 1),
+    ("ALIP_DT", 1),  # the ALIP Kalman filter (fused step only) and a pending step's dt
+)
+S_OFF, S_FIXED = _offsets(_S_SPEC)
+(S_R, S_V, S_P, S_D, S_COV, S_SCRATCH, S_GYRO_PREV, S_H, S_FOOT_SPEED, S_QUAT, S_VB,
+ S_FOOT_POS, S_FOOT_AXIS, S_FOOT_VEL, S_SPRING, S_COM_B, S_COMVEL_B, S_ANGMOM_B, S_FORCE,
+ S_EST_FORCE, S_EST_SPRING, S_ALIP_X, S_ALIP_RAW, S_STANCE_POS, S_EST_COM, S_EST_COMVEL,
+ S_KF_X, S_KF_P, S_KF_F, S_KF_Q, S_KF_R, S_KF_DT, S_ALIP_DT) = (S_OFF[n] for n, _ in _S_SPEC)
+#: after the fixed slots, in this order: kinematics q (nq) and v (nv), then the message block
+#: of the Estimate's q (nq) and v (nv), the packet's motor torques and IMU specific force
+S_DYNAMIC = ("KQ", "KV", "EQ", "EV", "TORQUE", "ACCEL")
+
+#: ``I`` (int64): integer state. The first ``I_OUT`` entries are what the process publishes
+_I_SPEC = (
+    ("UTIME", 1), ("STATUS", 1), ("EST_STANCE", 1), ("FC", 2), ("DIRTY", 1),
+    ("TARGET_STATUS", 1),  # out: utime, status, alip stance, in contact, ALIP fields changed
+    ("INIT", 1), ("UPDATES", 1), ("STALE", 1), ("LAST_UTIME", 1), ("ALIP_UTIME", 1),
+    ("STEPS", 1), ("CC", 2), ("MODE", 2), ("ALIP_STANCE", 1), ("PEND_STANCE", 1),
+)
+I_OFF, I_SIZE = _offsets(_I_SPEC)
+(I_UTIME, I_STATUS, I_EST_STANCE, I_FC, I_DIRTY, I_TARGET_STATUS, I_INIT, I_UPDATES, I_STALE,
+ I_LAST_UTIME, I_ALIP_UTIME, I_STEPS, I_CC, I_MODE, I_ALIP_STANCE,
+ I_PEND_STANCE) = (I_OFF[n] for n, _ in _I_SPEC)
+I_OUT = I_TARGET_STATUS + 1
+
+#: ``C`` (float64): constants
+_C_SPEC = (
+    ("LO", W_NCHECK), ("HI", W_NCHECK), ("QN_LO", 1), ("QN_HI", 1),  # range check
+    ("R_IMU", 3), ("G", 3), ("VAR_G", 1), ("VAR_A", 1), ("VAR_C", 1), ("VAR_S", 1),
+    ("KIN_VAR", 1),  # InEKF
+    ("GAIN", 2), ("ON_N", 1), ("OFF_N", 1), ("TD_SPEED", 1),  # contact
+    ("FOOT_RADIUS", 1), ("FOOT_HALF", 1), ("MASS", 1),
+    ("TGT_OFF", 12), ("ACH_DIR", 6), ("PLA_AXIS", 6), ("PLA_TIP_PROJ", 6), ("ROD_TIP", 12),
+    ("FOOT_LOCAL", 12), ("SPRING_REF", 4),  # kinematics
+)
+C_OFF, C_SIZE = _offsets(_C_SPEC)
+(C_LO, C_HI, C_QN_LO, C_QN_HI, C_R_IMU, C_G, C_VAR_G, C_VAR_A, C_VAR_C, C_VAR_S, C_KIN_VAR,
+ C_GAIN, C_ON_N, C_OFF_N, C_TD_SPEED, C_FOOT_RADIUS, C_FOOT_HALF, C_MASS, C_TGT_OFF,
+ C_ACH_DIR, C_PLA_AXIS, C_PLA_TIP_PROJ, C_ROD_TIP, C_FOOT_LOCAL,
+ C_SPRING_REF) = (C_OFF[n] for n, _ in _C_SPEC)
+
+#: ``CI`` (int64): index tables, sizes, the dynamic offsets of ``S``, addresses
+_CI_SPEC = (
+    ("MOTOR_QPOS", NUM_MOTORS), ("MOTOR_DOF", NUM_MOTORS), ("JOINT_QPOS", NUM_JOINTS),
+    ("JOINT_DOF", NUM_JOINTS), ("ACH_QPOS", 2), ("PLA_QPOS", 2), ("ACH_DOF", 2), ("PLA_DOF", 2),
+    ("ROD_BODY", 4), ("TGT_BODY", 4), ("FOOT_BODY", 2), ("SPRING_QPOS", 4), ("PELVIS", 1),
+    ("NQ", 1), ("NV", 1), ("NBODY", 1),
+    ("KQ", 1), ("KV", 1), ("EQ", 1), ("EV", 1), ("TORQUE", 1), ("ACCEL", 1),  # S offsets
+    ("FN", len(MJ_FUNCTIONS)), ("MODEL", 1), ("DATA", 1),  # C entry points, mjModel*, mjData*
+    ("QPOS", 1), ("QVEL", 1), ("XPOS", 1), ("XMAT", 1), ("CVEL", 1), ("SUBTREE_COM", 1),
+    ("SUBTREE_LINVEL", 1), ("SUBTREE_ANGMOM", 1),  # addresses of MjData's arrays
+)
+CI_OFF, CI_SIZE = _offsets(_CI_SPEC)
+(CI_MOTOR_QPOS, CI_MOTOR_DOF, CI_JOINT_QPOS, CI_JOINT_DOF, CI_ACH_QPOS, CI_PLA_QPOS,
+ CI_ACH_DOF, CI_PLA_DOF, CI_ROD_BODY, CI_TGT_BODY, CI_FOOT_BODY, CI_SPRING_QPOS, CI_PELVIS,
+ CI_NQ, CI_NV, CI_NBODY, CI_KQ, CI_KV, CI_EQ, CI_EV, CI_TORQUE, CI_ACCEL, CI_FN, CI_MODEL,
+ CI_DATA, CI_QPOS, CI_QVEL, CI_XPOS, CI_XMAT, CI_CVEL, CI_SUBTREE_COM, CI_SUBTREE_LINVEL,
+ CI_SUBTREE_ANGMOM) = (CI_OFF[n] for n, _ in _CI_SPEC)
+FN_KINEMATICS, FN_COMPOS, FN_COMVEL, FN_SUBTREEVEL, FN_MAT2QUAT = range(CI_FN, CI_FN + 5)
+
+# -- what ``run`` returns ---------------------------------------------------------------------
+OK = 0
+#: the datagram is not a valid robot-output packet / out of range / its time does not advance
+#: (the caller asks ``OutputPacket.decode`` and ``CassieEstimator.check`` why, or what to do)
+E_DECODE, E_RANGE, E_STALE = -1, -2, -3
+E_NONFINITE = -4  # the estimate is not finite
+#: the step stopped for Python to do something rare, then resumes at a later phase: the first
+#: packet (or a restart) initialises the filter / every 1000th propagation re-orthonormalises R
+#: (numpy's SVD) / the ALIP step has a new dt (scipy's expm)
+NEED_INIT, NEED_SVD, NEED_ALIP_F = 1, 2, 3
+#: phases: checks, kinematics, propagation, contact + correction + outputs, ALIP filter
+PH_CHECK, PH_KIN, PH_PROPAGATE, PH_ESTIMATE, PH_ALIP = range(5)
+
+STATUS_INITIALIZING = 1 << 0
+STATUS_NO_CONTACT = 1 << 1
+STATUS_PACKET_GAP = 1 << 2
+
+
+@_jit
+def _checks(W: np.ndarray, PB: np.ndarray, S: np.ndarray, N: np.ndarray,
+            C: np.ndarray) -> int:
+    """``OutputPacket.decode`` (version, kind, finite doubles; then copied into the packet
+    ``PB``) and ``CassieEstimator.check`` (bounds, IMU quaternion norm, time advancing)."""
+    if W[W_VERSION] != PROTOCOL_VERSION or W[W_KIND] != KIND_OUTPUT:
+        return E_DECODE
+    wf = W.view(np.float64)
+    for i in range(W_QUAT, W_QUAT + W_NFINITE):
+        if not math.isfinite(wf[i]):
+            return E_DECODE
+    PB[:] = W[4:]
+    if not _in_bounds(wf[W_QUAT:W_QUAT + W_NCHECK], C[C_LO:C_LO + W_NCHECK],
+                      C[C_HI:C_HI + W_NCHECK], C[C_QN_LO], C[C_QN_HI]):
+        return E_RANGE
+    N[I_TARGET_STATUS] = W.view(np.uint32)[W_STATUS]
+    if N[I_INIT] != 0 and W.view(np.int64)[W_UTIME] <= N[I_LAST_UTIME]:
+        return E_STALE
+    N[I_STALE] = 0
+    return OK
+
+
+@_jit
+def _kinematics(wf: np.ndarray, S: np.ndarray, C: np.ndarray, CI: np.ndarray) -> None:
+    """``LegKinematics.update``: the same kernels and MuJoCo calls, in the same order."""
+    nq, nv, nb = CI[CI_NQ], CI[CI_NV], CI[CI_NBODY]
+    m, d = CI[CI_MODEL], CI[CI_DATA]
+    qpos = numba.carray(_f8_ptr(CI[CI_QPOS]), (nq,))
+    qvel = numba.carray(_f8_ptr(CI[CI_QVEL]), (nv,))
+    xpos = numba.carray(_f8_ptr(CI[CI_XPOS]), (nb, 3))
+    xmat = numba.carray(_f8_ptr(CI[CI_XMAT]), (nb, 9))
+    cvel = numba.carray(_f8_ptr(CI[CI_CVEL]), (nb, 6))
+    scom = numba.carray(_f8_ptr(CI[CI_SUBTREE_COM]), (nb, 3))
+    q = S[CI[CI_KQ]:CI[CI_KQ] + nq]
+    v = S[CI[CI_KV]:CI[CI_KV] + nv]
+    ach_q = CI[CI_ACH_QPOS:CI_ACH_QPOS + 2]
+    pla_q = CI[CI_PLA_QPOS:CI_PLA_QPOS + 2]
+    rod_body = CI[CI_ROD_BODY:CI_ROD_BODY + 4]
+    tgt_body = CI[CI_TGT_BODY:CI_TGT_BODY + 4]
+    foot_body = CI[CI_FOOT_BODY:CI_FOOT_BODY + 2]
+    tgt_off = C[C_TGT_OFF:C_TGT_OFF + 12].reshape((4, 3))
+    pla_axis = C[C_PLA_AXIS:C_PLA_AXIS + 6].reshape((2, 3))
+    foot_pos = S[S_FOOT_POS:S_FOOT_POS + 6].reshape((2, 3))
+    pelvis = CI[CI_PELVIS]
+    _assemble(q, v, wf[W_MPOS:W_MPOS + NUM_MOTORS], wf[W_MVEL:W_MVEL + NUM_MOTORS],
+              wf[W_JPOS:W_JPOS + NUM_JOINTS], wf[W_JVEL:W_JVEL + NUM_JOINTS],
+              CI[CI_MOTOR_QPOS:CI_MOTOR_QPOS + NUM_MOTORS],
+              CI[CI_MOTOR_DOF:CI_MOTOR_DOF + NUM_MOTORS],
+              CI[CI_JOINT_QPOS:CI_JOINT_QPOS + NUM_JOINTS],
+              CI[CI_JOINT_DOF:CI_JOINT_DOF + NUM_JOINTS], ach_q, pla_q, qpos)
+    _call2(CI[FN_KINEMATICS], m, d)  # pass 1: rods at their zero angle
+    _solve_rods(xpos, xmat, q, qpos, rod_body, tgt_body, tgt_off,
+                C[C_ACH_DIR:C_ACH_DIR + 6].reshape((2, 3)), pla_axis,
+                C[C_PLA_TIP_PROJ:C_PLA_TIP_PROJ + 6].reshape((2, 3)), ach_q, pla_q)
+    _call2(CI[FN_KINEMATICS], m, d)
+    _call2(CI[FN_COMPOS], m, d)
+    _feet_and_springs(xpos, xmat, foot_body, C[C_FOOT_LOCAL:C_FOOT_LOCAL + 12].reshape((2, 3, 2)),
+                      foot_pos, S[S_FOOT_AXIS:S_FOOT_AXIS + 6].reshape((2, 3)), q,
+                      CI[CI_SPRING_QPOS:CI_SPRING_QPOS + 4].reshape((2, 2)),
+                      C[C_SPRING_REF:C_SPRING_REF + 4].reshape((2, 2)),
+                      S[S_SPRING:S_SPRING + 4].reshape((2, 2)))
+    qvel[:] = v
+    _call2(CI[FN_COMVEL], m, d)
+    _foot_velocities(cvel, scom, pelvis, foot_body, foot_pos,
+                     S[S_FOOT_VEL:S_FOOT_VEL + 6].reshape((2, 3)))
+    _rod_velocities(xpos, xmat, cvel, scom, v, pelvis, rod_body, tgt_body,
+                    C[C_ROD_TIP:C_ROD_TIP + 12].reshape((4, 3)), tgt_off, pla_axis,
+                    CI[CI_ACH_DOF:CI_ACH_DOF + 2], CI[CI_PLA_DOF:CI_PLA_DOF + 2])
+
+
+@_jit
+def _estimate(wf: np.ndarray, S: np.ndarray, N: np.ndarray, C: np.ndarray, CI: np.ndarray,
+              gap: bool) -> None:
+    """``CassieEstimator.update`` after the propagation, up to the ALIP part: sole points,
+    foot speeds, spring contact, touchdowns and lift-offs, the InEKF correction, and
+    ``_fill``'s ``q``, ``v`` and status (the same arithmetic, in the same order)."""
+    R = S[S_R:S_R + 9].reshape((3, 3))
+    fv = S[S_V:S_V + 3]
+    fp = S[S_P:S_P + 3]
+    d = S[S_D:S_D + 6].reshape((2, 3))
+    P = S[S_COV:S_COV + DIM * DIM].reshape((DIM, DIM))
+    gyro = wf[W_GYRO:W_GYRO + 3]
+    S[S_GYRO_PREV:S_GYRO_PREV + 3] = gyro
+    N[I_LAST_UTIME] = _utime(wf)
+    foot_pos = S[S_FOOT_POS:S_FOOT_POS + 6].reshape((2, 3))
+    h = S[S_H:S_H + 6].reshape((2, 3))
+    r_imu = C[C_R_IMU:C_R_IMU + 3]
+    switched = np.zeros(2, dtype=np.bool_)
+    _sole_points(foot_pos, S[S_FOOT_AXIS:S_FOOT_AXIS + 6].reshape((2, 3)), R[2], r_imu,
+                 C[C_FOOT_RADIUS], C[C_FOOT_HALF], N[I_MODE:I_MODE + 2], h, switched)
+    speed = S[S_FOOT_SPEED:S_FOOT_SPEED + 2]
+    _foot_speeds(R, fv, gyro, foot_pos, S[S_FOOT_VEL:S_FOOT_VEL + 6].reshape((2, 3)), r_imu,
+                 speed)
+    # SpringContact.update: F = -(spring_defl @ gain), hysteresis, a start only on a slow foot
+    sd = S[S_SPRING:S_SPRING + 4].reshape((2, 2))
+    force = S[S_FORCE:S_FORCE + 2]
+    g0, g1 = C[C_GAIN], C[C_GAIN + 1]
+    for k in range(2):
+        force[k] = -(sd[k, 0] * g0 + sd[k, 1] * g1)
+        if N[I_CC + k] != 0:
+            if force[k] < C[C_OFF_N]:
+                N[I_CC + k] = 0
+        elif force[k] > C[C_ON_N] and speed[k] < C[C_TD_SPEED]:
+            N[I_CC + k] = 1
+    # a new contact point (re)seeds its slot (ContactInEKF.touchdown); a lift-off frees it
+    kv = C[C_KIN_VAR]
+    for k in range(2):
+        if N[I_CC + k] != 0 and (N[I_FC + k] == 0 or switched[k]):
+            for i in range(3):
+                d[k, i] = fp[i] + (R[i, 0] * h[k, 0] + R[i, 1] * h[k, 1] + R[i, 2] * h[k, 2])
+            f = 9 + 3 * k
+            for i in range(3):
+                for j in range(DIM):
+                    P[f + i, j] = P[6 + i, j]
+            for j in range(DIM):
+                for i in range(3):
+                    P[j, f + i] = P[j, 6 + i]
+            for i in range(3):
+                for j in range(3):
+                    P[f + i, f + j] = P[6 + i, 6 + j] + (kv if i == j else 0.0)
+            N[I_FC + k] = 1
+        elif N[I_CC + k] == 0 and N[I_FC + k] != 0:
+            N[I_FC + k] = 0
+    k0, k1 = N[I_FC] != 0, N[I_FC + 1] != 0
+    if k0 or k1:
+        _correct(R, fv, fp, d, P, h, k0, k1, kv)
+    # _fill: pelvis origin from the IMU point: p - R r, v - R (w x r)
+    nq, nv = CI[CI_NQ], CI[CI_NV]
+    q = S[CI[CI_EQ]:CI[CI_EQ] + nq]
+    v = S[CI[CI_EV]:CI[CI_EV] + nv]
+    kq = S[CI[CI_KQ]:CI[CI_KQ] + nq]
+    kvel = S[CI[CI_KV]:CI[CI_KV] + nv]
+    q[7:] = kq[7:]
+    v[6:] = kvel[6:]
+    r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
+    r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
+    r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
+    w0, w1, w2 = gyro[0], gyro[1], gyro[2]
+    x, y, z = r_imu[0], r_imu[1], r_imu[2]
+    q[0] = fp[0] - (r00 * x + r01 * y + r02 * z)
+    q[1] = fp[1] - (r10 * x + r11 * y + r12 * z)
+    q[2] = fp[2] - (r20 * x + r21 * y + r22 * z)
+    c0, c1, c2 = w1 * z - w2 * y, w2 * x - w0 * z, w0 * y - w1 * x
+    vx, vy, vz = fv[0], fv[1], fv[2]
+    vx -= r00 * c0 + r01 * c1 + r02 * c2
+    vy -= r10 * c0 + r11 * c1 + r12 * c2
+    vz -= r20 * c0 + r21 * c1 + r22 * c2
+    v[0], v[1], v[2] = vx, vy, vz
+    base = S.ctypes.data
+    _call2(CI[FN_MAT2QUAT], base + 8 * S_QUAT, base + 8 * S_R)
+    q[3:7] = S[S_QUAT:S_QUAT + 4]
+    v[3:6] = gyro
+    N[I_UTIME] = _utime(wf)
+    S[S_EST_FORCE:S_EST_FORCE + 2] = force
+    S[S_EST_SPRING] = sd[0, 0]
+    S[S_EST_SPRING + 1] = sd[1, 0]
+    status = 0
+    if N[I_UPDATES] < 200:
+        status |= STATUS_INITIALIZING
+    if not (k0 or k1):
+        status |= STATUS_NO_CONTACT
+    if gap:
+        status |= STATUS_PACKET_GAP
+    N[I_STATUS] = status
+    N[I_UPDATES] += 1
+    # the message block: the packet's torques and specific force beside q and v
+    S[CI[CI_TORQUE]:CI[CI_TORQUE] + NUM_MOTORS] = wf[W_MTAU:W_MTAU + NUM_MOTORS]
+    S[CI[CI_ACCEL]:CI[CI_ACCEL] + 3] = wf[W_ACCEL:W_ACCEL + 3]
+
+
+@_jit
+def _utime(wf: np.ndarray) -> int:
+    """The packet's ``utime`` (int64 at float64 element ``W_UTIME`` of the work buffer)."""
+    return wf.view(np.int64)[W_UTIME]
+
+
+@_jit
+def _alip_measure(wf: np.ndarray, S: np.ndarray, N: np.ndarray, C: np.ndarray,
+                  CI: np.ndarray) -> int:
+    """``_fill``'s ALIP part up to the filter: CoM, momentum, stance, the raw ALIP state.
+    Returns the stance foot (-1: none, nothing more to do)."""
+    R = S[S_R:S_R + 9].reshape((3, 3))
+    r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
+    r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
+    r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
+    nq, nv, nb = CI[CI_NQ], CI[CI_NV], CI[CI_NBODY]
+    q = S[CI[CI_EQ]:CI[CI_EQ] + nq]
+    v = S[CI[CI_EV]:CI[CI_EV] + nv]
+    vx, vy, vz = v[0], v[1], v[2]
+    vb = S[S_VB:S_VB + 3]  # pelvis velocity in the pelvis frame, R^T v
+    vb[0] = r00 * vx + r10 * vy + r20 * vz
+    vb[1] = r01 * vx + r11 * vy + r21 * vz
+    vb[2] = r02 * vx + r12 * vy + r22 * vz
+    # LegKinematics.update_momentum
+    kv = S[CI[CI_KV]:CI[CI_KV] + nv]
+    kv[0:3] = vb
+    kv[3:6] = wf[W_GYRO:W_GYRO + 3]
+    qvel = numba.carray(_f8_ptr(CI[CI_QVEL]), (nv,))
+    qvel[:] = kv
+    _call2(CI[FN_COMVEL], CI[CI_MODEL], CI[CI_DATA])
+    _call2(CI[FN_SUBTREEVEL], CI[CI_MODEL], CI[CI_DATA])
+    b = CI[CI_PELVIS]
+    scom = numba.carray(_f8_ptr(CI[CI_SUBTREE_COM]), (nb, 3))
+    slin = numba.carray(_f8_ptr(CI[CI_SUBTREE_LINVEL]), (nb, 3))
+    sang = numba.carray(_f8_ptr(CI[CI_SUBTREE_ANGMOM]), (nb, 3))
+    S[S_COM_B:S_COM_B + 3] = scom[b]
+    S[S_COMVEL_B:S_COMVEL_B + 3] = slin[b]
+    S[S_ANGMOM_B:S_ANGMOM_B + 3] = sang[b]
+    bx, by, bz = scom[b, 0], scom[b, 1], scom[b, 2]
+    ux, uy, uz = slin[b, 0], slin[b, 1], slin[b, 2]
+    lx, ly, lz = sang[b, 0], sang[b, 1], sang[b, 2]
+    cx = q[0] + r00 * bx + r01 * by + r02 * bz
+    cy = q[1] + r10 * bx + r11 * by + r12 * bz
+    cz = q[2] + r20 * bx + r21 * by + r22 * bz
+    gx = r00 * ux + r01 * uy + r02 * uz
+    gy = r10 * ux + r11 * uy + r12 * uz
+    gz = r20 * ux + r21 * uy + r22 * uz
+    S[S_EST_COM], S[S_EST_COM + 1], S[S_EST_COM + 2] = cx, cy, cz
+    S[S_EST_COMVEL], S[S_EST_COMVEL + 1], S[S_EST_COMVEL + 2] = gx, gy, gz
+    k0, k1 = N[I_FC] != 0, N[I_FC + 1] != 0
+    stance = N[I_EST_STANCE]
+    if k0 != k1:
+        stance = 0 if k0 else 1
+    elif k0 and stance < 0:
+        stance = 0  # double stance from the start: the left foot, by convention
+    N[I_DIRTY] = 1
+    if stance < 0:
+        N[I_EST_STANCE] = -1
+        return -1
+    d = S[S_D:S_D + 6].reshape((2, 3))
+    sx, sy, sz = d[stance, 0], d[stance, 1], d[stance, 2]  # the stance foot's contact point
+    S[S_STANCE_POS], S[S_STANCE_POS + 1], S[S_STANCE_POS + 2] = sx, sy, sz
+    ex, ey, ez = cx - sx, cy - sy, cz - sz
+    m = C[C_MASS]
+    # L_p = L_com + m (c - p) x v_com (angular momentum transfer), world axes
+    raw = S[S_ALIP_RAW:S_ALIP_RAW + 4]
+    raw[0], raw[1] = ex, ey
+    raw[2] = r00 * lx + r01 * ly + r02 * lz + m * (ey * gz - ez * gy)
+    raw[3] = r10 * lx + r11 * ly + r12 * lz + m * (ez * gx - ex * gz)
+    utime = _utime(wf)
+    S[S_ALIP_DT] = (utime - N[I_ALIP_UTIME]) * 1e-6 if N[I_EST_STANCE] == stance else 0.0
+    N[I_ALIP_UTIME] = utime
+    return stance
+
+
+@_fjit
+def _mat4(a: np.ndarray, b: np.ndarray, out: np.ndarray, bt: bool) -> None:
+    """out = a @ b (or a @ b^T), 4 x 4."""
+    for i in range(4):
+        for j in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += a[i, k] * (b[j, k] if bt else b[k, j])
+            out[i, j] = acc
+
+
+@_fjit
+def _alip_filter(S: np.ndarray, N: np.ndarray, stance: int) -> bool:
+    """``AlipKalman.step`` (filterpy's predict and update with ``H = I``, in filterpy's
+    order; the inverse by LU with partial pivoting, as LAPACK's): False when the step needs
+    the model discretised for its dt first (``NEED_ALIP_F``). A singular innovation matrix
+    (filterpy: ``LinAlgError``) gives a non-finite state, which the caller drops."""
+    z = S[S_ALIP_RAW:S_ALIP_RAW + 4]
+    dt = S[S_ALIP_DT]
+    x = S[S_KF_X:S_KF_X + 4]
+    P = S[S_KF_P:S_KF_P + 16].reshape((4, 4))
+    Rm = S[S_KF_R:S_KF_R + 16].reshape((4, 4))
+    if stance != N[I_ALIP_STANCE] or dt <= 0.0 or dt > 0.05:
+        # new stance foot (or a long gap): the state jumped, restart from the measurement
+        N[I_ALIP_STANCE] = stance
+        x[:] = z
+        P[:, :] = Rm
+    else:
+        if not abs(dt - S[S_KF_DT]) < 1e-9:
+            return False
+        F = S[S_KF_F:S_KF_F + 16].reshape((4, 4))
+        Q = S[S_KF_Q:S_KF_Q + 16].reshape((4, 4))
+        # predict: x = F x; P = F P F^T + Q
+        xn = np.empty(4)
+        for i in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += F[i, k] * x[k]
+            xn[i] = acc
+        x[:] = xn
+        fp = np.empty((4, 4))
+        _mat4(F, P, fp, False)
+        _mat4(fp, F, P, True)
+        for i in range(4):
+            for j in range(4):
+                P[i, j] = P[i, j] + Q[i, j]
+        # update: y = z - x; S = P + R; K = P S^-1; x += K y; P = (I-K) P (I-K)^T + K R K^T
+        y = np.empty(4)
+        for i in range(4):
+            y[i] = z[i] - x[i]
+        sm = np.empty((4, 4))
+        for i in range(4):
+            for j in range(4):
+                sm[i, j] = P[i, j] + Rm[i, j]
+        si = _inv4(sm)
+        K = np.empty((4, 4))
+        _mat4(P, si, K, False)
+        for i in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += K[i, k] * y[k]
+            x[i] = x[i] + acc
+        ikh = np.empty((4, 4))
+        for i in range(4):
+            for j in range(4):
+                ikh[i, j] = (1.0 if i == j else 0.0) - K[i, j]
+        a = np.empty((4, 4))
+        b = np.empty((4, 4))
+        kr = np.empty((4, 4))
+        _mat4(ikh, P, a, False)
+        _mat4(a, ikh, b, True)
+        _mat4(K, Rm, kr, False)
+        _mat4(kr, K, a, True)
+        for i in range(4):
+            for j in range(4):
+                P[i, j] = b[i, j] + a[i, j]
+    S[S_ALIP_X:S_ALIP_X + 4] = x
+    return True
+
+
+@_fjit
+def _inv4(a: np.ndarray) -> np.ndarray:
+    """The inverse of a 4 x 4 matrix: LU with partial pivoting, then solves for I."""
+    lu = a.copy()
+    piv = np.arange(4)
+    for c in range(4):
+        p = c
+        for r in range(c + 1, 4):
+            if abs(lu[r, c]) > abs(lu[p, c]):
+                p = r
+        if p != c:
+            for j in range(4):
+                lu[c, j], lu[p, j] = lu[p, j], lu[c, j]
+            piv[c], piv[p] = piv[p], piv[c]
+        for r in range(c + 1, 4):
+            lu[r, c] /= lu[c, c]
+            for j in range(c + 1, 4):
+                lu[r, j] -= lu[r, c] * lu[c, j]
+    out = np.empty((4, 4))
+    for col in range(4):
+        y = np.empty(4)
+        for i in range(4):  # L y = P e_col
+            acc = 1.0 if piv[i] == col else 0.0
+            for k in range(i):
+                acc -= lu[i, k] * y[k]
+            y[i] = acc
+        for i in range(3, -1, -1):  # U x = y
+            acc = y[i]
+            for k in range(i + 1, 4):
+                acc -= lu[i, k] * out[k, col]
+            out[i, col] = acc / lu[i, i]
+    return out
+
+
+@_jit
+def _finite(S: np.ndarray, CI: np.ndarray) -> bool:
+    """The published estimate (``q``, ``v``, ALIP state) is finite."""
+    e0 = CI[CI_EQ]
+    for i in range(e0, e0 + CI[CI_NQ] + CI[CI_NV]):  # EQ and EV are adjacent
+        if not math.isfinite(S[i]):
+            return False
+    for i in range(S_ALIP_X, S_ALIP_X + 4):  # noqa: SIM110  (a plain loop for numba)
+        if not math.isfinite(S[i]):
+            return False
+    return True
+
+
+@_jit
+def run(phase: int, alip: bool, gap: bool, W: np.ndarray, PB: np.ndarray, S: np.ndarray,
+        N: np.ndarray, C: np.ndarray, CI: np.ndarray) -> int:
+    """One packet (in ``W``) from ``phase`` on: ``OK``, an ``E_*`` rejection, or a ``NEED_*``
+    for the caller to serve before calling again at the phase that follows it.
+
+    ``alip``: also the CoM, momentum and ALIP filter (the laptop's packets); ``gap``: packets
+    were lost before this one (a status bit); ``PB``: the ``OutputPacket`` buffer the valid
+    datagram is copied into."""
+    wf = W.view(np.float64)
+    if phase <= PH_CHECK:
+        N[I_DIRTY] = 0
+        code = _checks(W, PB, S, N, C)
+        if code != OK:
+            return code
+    if phase <= PH_KIN:
+        _kinematics(wf, S, C, CI)
+        if N[I_INIT] == 0:
+            return NEED_INIT
+    if phase <= PH_PROPAGATE:
+        # gyro of the previous sample (zero-order hold over the interval), accel of this one
+        dt = (_utime(wf) - N[I_LAST_UTIME]) * 1e-6
+        if dt > 0.0:
+            c0, c1 = N[I_FC] != 0, N[I_FC + 1] != 0
+            _propagate(S[S_R:S_R + 9].reshape((3, 3)), S[S_V:S_V + 3], S[S_P:S_P + 3],
+                       S[S_D:S_D + 6].reshape((2, 3)),
+                       S[S_COV:S_COV + DIM * DIM].reshape((DIM, DIM)),
+                       S[S_GYRO_PREV:S_GYRO_PREV + 3], wf[W_ACCEL:W_ACCEL + 3], dt,
+                       C[C_G:C_G + 3], C[C_VAR_G], C[C_VAR_A],
+                       C[C_VAR_C] if c0 else C[C_VAR_S], C[C_VAR_C] if c1 else C[C_VAR_S],
+                       S[S_SCRATCH:S_SCRATCH + 9].reshape((3, 3)))
+            N[I_STEPS] += 1
+            if N[I_STEPS] % 1000 == 0:  # keep R on SO(3) against round-off
+                return NEED_SVD
+    if phase <= PH_ESTIMATE:
+        _estimate(wf, S, N, C, CI, gap)
+        if alip:
+            stance = _alip_measure(wf, S, N, C, CI)
+            N[I_PEND_STANCE] = stance
+            if stance >= 0 and not _alip_filter(S, N, stance):
+                return NEED_ALIP_F
+            if stance >= 0:
+                N[I_EST_STANCE] = stance
+    elif phase == PH_ALIP:
+        stance = N[I_PEND_STANCE]
+        if not _alip_filter(S, N, stance):
+            return NEED_ALIP_F
+        N[I_EST_STANCE] = stance
+    return OK if _finite(S, CI) else E_NONFINITE
