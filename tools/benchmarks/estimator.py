@@ -141,9 +141,16 @@ def baseline_node(rev: str) -> type:
     import sys
 
     root = baseline_root(rev)
-    if str(root) not in sys.path:
-        sys.path.insert(0, str(root))
-    return importlib.import_module("baseline_state_estimator.process").StateEstimatorNode
+    pkg = "baseline_state_estimator"
+    loaded = sys.modules.get(pkg)
+    if loaded is not None and Path(loaded.__file__ or "").parent.parent != root:
+        # another revision's baseline was imported in this process: forget it
+        for name in [n for n in sys.modules if n == pkg or n.startswith(pkg + ".")]:
+            del sys.modules[name]
+    if str(root) in sys.path:
+        sys.path.remove(str(root))
+    sys.path.insert(0, str(root))
+    return importlib.import_module(f"{pkg}.process").StateEstimatorNode
 
 
 def side_by_side(packets: list[bytes], baseline: type, repeats: int = 3) -> dict[str, float]:
