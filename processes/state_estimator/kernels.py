@@ -526,6 +526,7 @@ if (any((OUTPUT_LAYOUT.fields[f][1] + 4) % 8 for f in _PKT)
         or OUTPUT_LAYOUT.fields["utime"][1] + 8 != OUTPUT_LAYOUT.fields["imu_quat"][1]
         or OUTPUT_LAYOUT.fields["task_time_s"][1] + 8 != OUTPUT_LAYOUT.fields["overruns"][1]
         or [f for f in OUTPUT_LAYOUT.names if OUTPUT_LAYOUT[f].base.kind == "f"] != list(_PKT)
+        or sum(OUTPUT_LAYOUT[f].itemsize for f in list(_PKT)[:-1]) != 8 * W_NCHECK
         or (OUTPUT_LAYOUT.fields["status"][1] + 4) % 4):
     raise ImportError("runtime.cassie_packets layout changed: update the fused estimator step")
 

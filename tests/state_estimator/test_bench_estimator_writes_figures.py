@@ -32,6 +32,9 @@ def test_bench_times_a_git_baseline_side_by_side(tmp_path, capsys):
     for side in ("baseline", "this"):
         assert fig[f"{side}_tick_median_ms"] > 0.0
     assert 0.2 < fig["speedup_median_ratio"] < 5.0
+    # and every message of the two compared (same code: the same messages)
+    assert fig["equiv_states"] >= 400 and fig["equiv_roles_differ"] == 0
+    assert 0.0 <= fig["equiv_states_byte_identical_ratio"] <= 1.0
     assert "side by side: baseline HEAD" in capsys.readouterr().out
 
 
