@@ -71,33 +71,6 @@ class AlipKalman:
         self._dt = dt
         self.kf.F, self.kf.Q = self.discretise(dt)
 
-    def step_lean(self, z: np.ndarray, stance: int, dt: float) -> np.ndarray:
-        """``step`` without filterpy's bookkeeping: the same numpy operations on the same
-        arrays, in the same order, so the same numbers to the bit, but not its copies of the
-        prior, posterior and measurement (``deepcopy``) nor its residual, gain and innovation
-        attributes (left stale). About a third of ``step``'s cost; the fused estimator step
-        runs it on the laptop's packets."""
-        kf = self.kf
-        if stance != self.stance or dt <= 0.0 or dt > 0.05:
-            self.stance = stance
-            kf.x = z.reshape(4, 1).copy()
-            kf.P = kf.R.copy()
-        else:
-            self._set_dt(dt)
-            F, H, R = kf.F, kf.H, kf.R
-            # KalmanFilter.predict
-            x = np.dot(F, kf.x)
-            P = kf._alpha_sq * np.dot(np.dot(F, kf.P), F.T) + kf.Q
-            # KalmanFilter.update (z as filterpy's reshape_z makes it: a column view)
-            y = np.atleast_2d(z).T - np.dot(H, x)
-            PHT = np.dot(P, H.T)
-            K = np.dot(PHT, kf.inv(np.dot(H, PHT) + R))
-            kf.x = x + np.dot(K, y)
-            I_KH = kf._I - np.dot(K, H)
-            kf.P = np.dot(np.dot(I_KH, P), I_KH.T) + np.dot(np.dot(K, R), K.T)
-        self.x[:] = kf.x[:, 0]
-        return self.x
-
     def step(self, z: np.ndarray, stance: int, dt: float) -> np.ndarray:
         """One packet: ``z`` the measured ALIP state about the ``stance`` foot; returns x."""
         kf = self.kf

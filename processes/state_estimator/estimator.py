@@ -190,7 +190,7 @@ class CassieEstimator:
     def _bind(self) -> None:
         """Move every part's state into ``kernels``' packed buffers (values kept) and make
         the parts' arrays views of them: the fused step and the Python parts share one state."""
-        kin, f, c, est = self.kin, self.filter, self.contact, self.est
+        kin, f, c, est, a = self.kin, self.filter, self.contact, self.est, self.alip
         nq, nv = kin.nq, kin.nv
         sizes = {"KQ": nq, "KV": nv, "EQ": nq, "EV": nv, "TORQUE": NUM_MOTORS, "ACCEL": 3}
         dyn, o = {}, K.S_FIXED
@@ -225,8 +225,10 @@ class CassieEstimator:
         est.stance_pos = view(K.S_STANCE_POS, est.stance_pos)
         est.com, est.com_vel = view(K.S_EST_COM, est.com), view(K.S_EST_COMVEL, est.com_vel)
         est.q, est.v = view(dyn["EQ"], est.q), view(dyn["EV"], est.v)
+        S[K.S_KF_R:K.S_KF_R + 16] = a.kf.R.ravel()  # the ALIP filter of the fused step
+        S[K.S_KF_DT] = -1.0
         self._sole_mode = N[K.I_MODE:K.I_MODE + 2]
-        N[K.I_EST_STANCE] = -1
+        N[K.I_EST_STANCE] = N[K.I_ALIP_STANCE] = -1
         if self.fused:  # the flags the compiled step keeps; the reference keeps Python lists
             f.contact = N[K.I_FC:K.I_FC + 2]
             c.in_contact = N[K.I_CC:K.I_CC + 2]
@@ -382,10 +384,12 @@ class CassieEstimator:
                 u, _, vt = np.linalg.svd(self.filter.R)
                 self.filter.R[:] = u @ vt
                 phase = K.PH_ESTIMATE
-            else:  # NEED_ALIP: the ALIP filter's step, with filterpy's arithmetic
-                est = self.est
-                est.alip_x[:] = self.alip.step_lean(est.alip_raw, int(N[K.I_PEND_STANCE]),
-                                                    float(S[K.S_ALIP_DT]))
+            else:  # NEED_ALIP_F: discretise the ALIP model for this step (AlipKalman._set_dt)
+                dt = float(S[K.S_ALIP_DT])
+                F, Q = self.alip.discretise(dt)
+                S[K.S_KF_F:K.S_KF_F + 16] = F.ravel()
+                S[K.S_KF_Q:K.S_KF_Q + 16] = Q.ravel()
+                S[K.S_KF_DT] = dt
                 phase = K.PH_ALIP
             code = K.run(phase, alip, gap, W, pb, S, N, C, CI)
         return code
@@ -467,8 +471,8 @@ class CassieEstimator:
         self.contact.in_contact[:] = [False, False]
         self.alip.stance = -1
         self.est.alip_stance = -1
-        n = self._N  # the same for the fused step's copy of the last one
-        n[K.I_EST_STANCE] = -1
+        n = self._N  # the same for the fused step's copies of the last two
+        n[K.I_ALIP_STANCE] = n[K.I_EST_STANCE] = -1
         n[K.I_DIRTY] = 1
         self.updates = 0
         self.initialized = True

@@ -11,8 +11,7 @@ reference the fused step is tested against. ``run`` does one packet's whole work
 packet validation and range checks, leg kinematics (MuJoCo's ``mj_kinematics``, ``mj_comPos``,
 ``mj_comVel`` and ``mj_subtreeVel`` called through their C entry points), InEKF propagation,
 contact, correction, the full ``q``/``v``, and on the laptop's packets the CoM, momentum and
-the ALIP filter's measurement (the filter's own step is filterpy's numpy arithmetic, run by
-the caller); it works in place on a few packed buffers (layout below) whose slices the
+ALIP Kalman filter; it works in place on a few packed buffers (layout below) whose slices the
 Python objects hold as views. On the live 2 kHz path, Python's and numba's per-call costs on
 small arrays were most of a tick (and on this VM every wake-up runs with cold caches, so a
 tick's cost grows with the code and objects it touches).
@@ -540,13 +539,14 @@ _S_SPEC = (
     ("FORCE", 2),  # contact
     ("EST_FORCE", 2), ("EST_SPRING", 2), ("ALIP_X", 4), ("ALIP_RAW", 4), ("STANCE_POS", 3),
     ("EST_COM", 3), ("EST_COMVEL", 3),  # the Estimate
-    ("ALIP_DT", 1),  # the dt of the ALIP filter's step (its state is in AlipKalman)
+    ("KF_X", 4), ("KF_P", 16), ("KF_F", 16), ("KF_Q", 16), ("KF_R", 16), ("KF_DT", 1),
+    ("ALIP_DT", 1),  # the ALIP Kalman filter (fused step only) and a pending step's dt
 )
 S_OFF, S_FIXED = _offsets(_S_SPEC)
 (S_R, S_V, S_P, S_D, S_COV, S_SCRATCH, S_GYRO_PREV, S_H, S_FOOT_SPEED, S_QUAT, S_VB,
  S_FOOT_POS, S_FOOT_AXIS, S_FOOT_VEL, S_SPRING, S_COM_B, S_COMVEL_B, S_ANGMOM_B, S_FORCE,
  S_EST_FORCE, S_EST_SPRING, S_ALIP_X, S_ALIP_RAW, S_STANCE_POS, S_EST_COM, S_EST_COMVEL,
- S_ALIP_DT) = (S_OFF[n] for n, _ in _S_SPEC)
+ S_KF_X, S_KF_P, S_KF_F, S_KF_Q, S_KF_R, S_KF_DT, S_ALIP_DT) = (S_OFF[n] for n, _ in _S_SPEC)
 #: after the fixed slots, in this order: kinematics q (nq) and v (nv), then the message block
 #: of the Estimate's q (nq) and v (nv), the packet's motor torques and IMU specific force
 S_DYNAMIC = ("KQ", "KV", "EQ", "EV", "TORQUE", "ACCEL")
@@ -556,11 +556,11 @@ _I_SPEC = (
     ("UTIME", 1), ("STATUS", 1), ("EST_STANCE", 1), ("FC", 2), ("DIRTY", 1),
     ("TARGET_STATUS", 1),  # out: utime, status, alip stance, in contact, ALIP fields changed
     ("INIT", 1), ("UPDATES", 1), ("STALE", 1), ("LAST_UTIME", 1), ("ALIP_UTIME", 1),
-    ("STEPS", 1), ("CC", 2), ("MODE", 2), ("PEND_STANCE", 1),
+    ("STEPS", 1), ("CC", 2), ("MODE", 2), ("ALIP_STANCE", 1), ("PEND_STANCE", 1),
 )
 I_OFF, I_SIZE = _offsets(_I_SPEC)
 (I_UTIME, I_STATUS, I_EST_STANCE, I_FC, I_DIRTY, I_TARGET_STATUS, I_INIT, I_UPDATES, I_STALE,
- I_LAST_UTIME, I_ALIP_UTIME, I_STEPS, I_CC, I_MODE,
+ I_LAST_UTIME, I_ALIP_UTIME, I_STEPS, I_CC, I_MODE, I_ALIP_STANCE,
  I_PEND_STANCE) = (I_OFF[n] for n, _ in _I_SPEC)
 I_OUT = I_TARGET_STATUS + 1
 
@@ -605,11 +605,11 @@ OK = 0
 #: (the caller asks ``OutputPacket.decode`` and ``CassieEstimator.check`` why, or what to do)
 E_DECODE, E_RANGE, E_STALE = -1, -2, -3
 E_NONFINITE = -4  # the estimate is not finite
-#: the step stopped for Python, then resumes at a later phase: the first packet (or a restart)
-#: initialises the filter / every 1000th propagation re-orthonormalises R (numpy's SVD) / the
-#: ALIP Kalman filter steps (``AlipKalman.step_lean``: filterpy's numpy arithmetic, to the bit)
-NEED_INIT, NEED_SVD, NEED_ALIP = 1, 2, 3
-#: phases: checks, kinematics, propagation, contact + correction + outputs, after the ALIP step
+#: the step stopped for Python to do something rare, then resumes at a later phase: the first
+#: packet (or a restart) initialises the filter / every 1000th propagation re-orthonormalises R
+#: (numpy's SVD) / the ALIP step has a new dt (scipy's expm)
+NEED_INIT, NEED_SVD, NEED_ALIP_F = 1, 2, 3
+#: phases: checks, kinematics, propagation, contact + correction + outputs, ALIP filter
 PH_CHECK, PH_KIN, PH_PROPAGATE, PH_ESTIMATE, PH_ALIP = range(5)
 
 STATUS_INITIALIZING = 1 << 0
@@ -862,6 +862,120 @@ def _alip_measure(wf: np.ndarray, S: np.ndarray, N: np.ndarray, C: np.ndarray,
     return stance
 
 
+@_fjit
+def _mat4(a: np.ndarray, b: np.ndarray, out: np.ndarray, bt: bool) -> None:
+    """out = a @ b (or a @ b^T), 4 x 4."""
+    for i in range(4):
+        for j in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += a[i, k] * (b[j, k] if bt else b[k, j])
+            out[i, j] = acc
+
+
+@_fjit
+def _alip_filter(S: np.ndarray, N: np.ndarray, stance: int) -> bool:
+    """``AlipKalman.step`` (filterpy's predict and update with ``H = I``, in filterpy's
+    order; the inverse by LU with partial pivoting, as LAPACK's): False when the step needs
+    the model discretised for its dt first (``NEED_ALIP_F``). A singular innovation matrix
+    (filterpy: ``LinAlgError``) gives a non-finite state, which the caller drops."""
+    z = S[S_ALIP_RAW:S_ALIP_RAW + 4]
+    dt = S[S_ALIP_DT]
+    x = S[S_KF_X:S_KF_X + 4]
+    P = S[S_KF_P:S_KF_P + 16].reshape((4, 4))
+    Rm = S[S_KF_R:S_KF_R + 16].reshape((4, 4))
+    if stance != N[I_ALIP_STANCE] or dt <= 0.0 or dt > 0.05:
+        # new stance foot (or a long gap): the state jumped, restart from the measurement
+        N[I_ALIP_STANCE] = stance
+        x[:] = z
+        P[:, :] = Rm
+    else:
+        if not abs(dt - S[S_KF_DT]) < 1e-9:
+            return False
+        F = S[S_KF_F:S_KF_F + 16].reshape((4, 4))
+        Q = S[S_KF_Q:S_KF_Q + 16].reshape((4, 4))
+        # predict: x = F x; P = F P F^T + Q
+        xn = np.empty(4)
+        for i in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += F[i, k] * x[k]
+            xn[i] = acc
+        x[:] = xn
+        fp = np.empty((4, 4))
+        _mat4(F, P, fp, False)
+        _mat4(fp, F, P, True)
+        for i in range(4):
+            for j in range(4):
+                P[i, j] = P[i, j] + Q[i, j]
+        # update: y = z - x; S = P + R; K = P S^-1; x += K y; P = (I-K) P (I-K)^T + K R K^T
+        y = np.empty(4)
+        for i in range(4):
+            y[i] = z[i] - x[i]
+        sm = np.empty((4, 4))
+        for i in range(4):
+            for j in range(4):
+                sm[i, j] = P[i, j] + Rm[i, j]
+        si = _inv4(sm)
+        K = np.empty((4, 4))
+        _mat4(P, si, K, False)
+        for i in range(4):
+            acc = 0.0
+            for k in range(4):
+                acc += K[i, k] * y[k]
+            x[i] = x[i] + acc
+        ikh = np.empty((4, 4))
+        for i in range(4):
+            for j in range(4):
+                ikh[i, j] = (1.0 if i == j else 0.0) - K[i, j]
+        a = np.empty((4, 4))
+        b = np.empty((4, 4))
+        kr = np.empty((4, 4))
+        _mat4(ikh, P, a, False)
+        _mat4(a, ikh, b, True)
+        _mat4(K, Rm, kr, False)
+        _mat4(kr, K, a, True)
+        for i in range(4):
+            for j in range(4):
+                P[i, j] = b[i, j] + a[i, j]
+    S[S_ALIP_X:S_ALIP_X + 4] = x
+    return True
+
+
+@_fjit
+def _inv4(a: np.ndarray) -> np.ndarray:
+    """The inverse of a 4 x 4 matrix: LU with partial pivoting, then solves for I."""
+    lu = a.copy()
+    piv = np.arange(4)
+    for c in range(4):
+        p = c
+        for r in range(c + 1, 4):
+            if abs(lu[r, c]) > abs(lu[p, c]):
+                p = r
+        if p != c:
+            for j in range(4):
+                lu[c, j], lu[p, j] = lu[p, j], lu[c, j]
+            piv[c], piv[p] = piv[p], piv[c]
+        for r in range(c + 1, 4):
+            lu[r, c] /= lu[c, c]
+            for j in range(c + 1, 4):
+                lu[r, j] -= lu[r, c] * lu[c, j]
+    out = np.empty((4, 4))
+    for col in range(4):
+        y = np.empty(4)
+        for i in range(4):  # L y = P e_col
+            acc = 1.0 if piv[i] == col else 0.0
+            for k in range(i):
+                acc -= lu[i, k] * y[k]
+            y[i] = acc
+        for i in range(3, -1, -1):  # U x = y
+            acc = y[i]
+            for k in range(i + 1, 4):
+                acc -= lu[i, k] * out[k, col]
+            out[i, col] = acc / lu[i, i]
+    return out
+
+
 @_jit
 def _finite(S: np.ndarray, CI: np.ndarray) -> bool:
     """The published estimate (``q``, ``v``, ALIP state) is finite."""
@@ -914,8 +1028,13 @@ def run(phase: int, alip: bool, gap: bool, W: np.ndarray, PB: np.ndarray, S: np.
         if alip:
             stance = _alip_measure(wf, S, N, C, CI)
             N[I_PEND_STANCE] = stance
+            if stance >= 0 and not _alip_filter(S, N, stance):
+                return NEED_ALIP_F
             if stance >= 0:
-                return NEED_ALIP  # the filter's step; ALIP_X then holds its output
+                N[I_EST_STANCE] = stance
     elif phase == PH_ALIP:
-        N[I_EST_STANCE] = N[I_PEND_STANCE]
+        stance = N[I_PEND_STANCE]
+        if not _alip_filter(S, N, stance):
+            return NEED_ALIP_F
+        N[I_EST_STANCE] = stance
     return OK if _finite(S, CI) else E_NONFINITE
