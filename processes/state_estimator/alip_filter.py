@@ -60,13 +60,16 @@ class AlipKalman:
         self.stance = -1
         self.x = np.zeros(4)
 
+    def discretise(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """(1) for a step ``dt``: the transition ``expm(A dt)`` and the process noise ``Q``."""
+        return expm(self.A * dt), np.diag(self._qc * dt)
+
     def _set_dt(self, dt: float) -> None:
         """Discretise (1) for step ``dt`` (cached: the packet period rarely changes)."""
         if abs(dt - self._dt) < 1e-9:
             return
         self._dt = dt
-        self.kf.F = expm(self.A * dt)
-        self.kf.Q = np.diag(self._qc * dt)
+        self.kf.F, self.kf.Q = self.discretise(dt)
 
     def step(self, z: np.ndarray, stance: int, dt: float) -> np.ndarray:
         """One packet: ``z`` the measured ALIP state about the ``stance`` foot; returns x."""

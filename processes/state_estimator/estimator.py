@@ -5,21 +5,27 @@ with the rods solved, spring-deflection contact, the contact-aided InEKF (IMU pr
 kinematics correction), the full ``q``/``v`` in MuJoCo order, and the ALIP state (CoM relative
 to the stance contact, angular momentum about it) smoothed by its Kalman filter. All buffers are
 preallocated; the returned ``Estimate`` is the same object every call (copy to keep it).
+
+Two implementations of the same estimator share one state: by default each packet is one call
+of the compiled step ``kernels.run`` (``step`` takes the raw datagram: validation, checks and
+the whole update); ``fused=False`` composes the modular parts in Python (``LegKinematics``,
+``ContactInEKF``, ``SpringContact``, ``AlipKalman`` on filterpy), as before the fused step,
+and is the reference it is tested against (``tests/state_estimator``: the same estimates to
+~1e-12 on recorded packets).
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field
 
 import mujoco
-import numba
 import numpy as np
 
-from runtime.cassie_packets import OUTPUT_LAYOUT, OutputPacket
+from runtime.cassie_packets import NUM_MOTORS, OUTPUT_LAYOUT, OUTPUT_SIZE, OutputPacket, PacketError
 
+from . import kernels as K
 from .alip_filter import AlipKalman
 from .contact import SpringContact
 from .inekf import ContactInEKF
@@ -29,12 +35,11 @@ from .params import EstimatorParams
 log = logging.getLogger(__name__)
 
 # estimate status bits (robot_state_t.status, low byte; see processes/state_estimator/process)
-STATUS_INITIALIZING = 1 << 0  # first packets: the filter is converging
-STATUS_NO_CONTACT = 1 << 1  # neither foot in contact: position is IMU dead reckoning
-STATUS_PACKET_GAP = 1 << 2  # packets were lost just before this one
+STATUS_INITIALIZING = K.STATUS_INITIALIZING  # first packets: the filter is converging
+STATUS_NO_CONTACT = K.STATUS_NO_CONTACT  # neither foot in contact: position is IMU dead reckoning
+STATUS_PACKET_GAP = K.STATUS_PACKET_GAP  # packets were lost just before this one
 #: sine of the foot pitch above which the heel or toe bears the load, and back to mid-foot
-PITCH_ON = 0.03
-PITCH_OFF = 0.015
+PITCH_ON, PITCH_OFF = K.PITCH_ON, K.PITCH_OFF
 #: consecutive packets whose time does not advance before the target PC counts as restarted
 RESTART_AFTER = 200
 
@@ -49,55 +54,6 @@ if OUTPUT_LAYOUT.fields["joint_vel"][1] + 8 * OUTPUT_LAYOUT["joint_vel"].shape[0
     raise ImportError("runtime.cassie_packets layout changed: update the estimator's checks")
 _FIELD_OF = [f"{f}[{i}]" for f in _FIELDS for i in range(OUTPUT_LAYOUT[f].shape[0])]
 
-
-@numba.njit(cache=True, nogil=True)
-def _in_bounds(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, qn_lo: float,
-               qn_hi: float) -> bool:
-    """Every double within its bounds and the IMU quaternion (``x[0:4]``) of unit norm."""
-    for i in range(x.size):
-        if not (lo[i] <= x[i] <= hi[i]):
-            return False
-    n = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]
-    return qn_lo <= n <= qn_hi
-
-
-@numba.njit(cache=True, nogil=True)
-def _sole_points(foot_pos: np.ndarray, foot_axis: np.ndarray, up: np.ndarray,
-                 r_imu: np.ndarray, radius: float, half: float, modes: np.ndarray,
-                 h: np.ndarray, switched: np.ndarray) -> None:
-    """Per foot: pick the bearing sole point (mid-sole, or heel/toe when pitched, with
-    hysteresis), write it into ``h`` (IMU frame) and whether it changed into ``switched``."""
-    for k in range(2):
-        sp = (foot_axis[k, 0] * up[0] + foot_axis[k, 1] * up[1]
-              + foot_axis[k, 2] * up[2])  # sine of the foot pitch
-        mode = modes[k]
-        if mode == 0 and abs(sp) > PITCH_ON:
-            mode = -1 if sp > 0 else 1
-        elif mode != 0 and (abs(sp) < PITCH_OFF or mode * sp > 0):
-            mode = 0 if abs(sp) < PITCH_ON else (-1 if sp > 0 else 1)
-        switched[k] = mode != modes[k]
-        modes[k] = mode
-        for i in range(3):
-            h[k, i] = (foot_pos[k, i] - r_imu[i] - radius * up[i]
-                       + mode * half * foot_axis[k, i])
-
-
-@numba.njit(cache=True, nogil=True)
-def _foot_speeds(R: np.ndarray, v_imu: np.ndarray, w: np.ndarray, foot_pos: np.ndarray,
-                 foot_vel: np.ndarray, r_imu: np.ndarray, out: np.ndarray) -> None:
-    """Each foot's speed in the world: v_imu + R (w x (p - r_imu) + v_rel), with p and v_rel
-    the foot's position and velocity relative to the pelvis (pelvis frame, IMU aligned)."""
-    for k in range(2):
-        e0, e1, e2 = (foot_pos[k, 0] - r_imu[0], foot_pos[k, 1] - r_imu[1],
-                      foot_pos[k, 2] - r_imu[2])
-        b0 = w[1] * e2 - w[2] * e1 + foot_vel[k, 0]
-        b1 = w[2] * e0 - w[0] * e2 + foot_vel[k, 1]
-        b2 = w[0] * e1 - w[1] * e0 + foot_vel[k, 2]
-        s = 0.0
-        for i in range(3):
-            vi = v_imu[i] + R[i, 0] * b0 + R[i, 1] * b1 + R[i, 2] * b2
-            s += vi * vi
-        out[k] = math.sqrt(s)
 
 class RejectedPacket(ValueError):
     """A packet with values outside the physically plausible ranges; the message says which."""
@@ -128,13 +84,38 @@ class Estimate:
         self.v = np.zeros(self.nv)
 
 
+class _IntSlot:
+    """An integer attribute kept in the estimator's int state (``kernels`` layout ``I_*``),
+    so the fused step and Python read and write the same value."""
+
+    def __init__(self, index: int, kind: type = int) -> None:
+        self.index, self.kind = index, kind
+
+    def __get__(self, obj: CassieEstimator, owner: type | None = None) -> int | bool:
+        return self.kind(obj._N[self.index])
+
+    def __set__(self, obj: CassieEstimator, value: int | bool) -> None:
+        obj._N[self.index] = int(value)
+
+
 class CassieEstimator:
-    """IMU + leg kinematics + contact -> floating base (InEKF), joints, contact, ALIP state."""
+    """IMU + leg kinematics + contact -> floating base (InEKF), joints, contact, ALIP state.
+
+    ``fused`` (default): each packet is one call of the compiled step (``kernels.run``);
+    ``fused=False``: the modular parts composed in Python (the reference). Either way the
+    parts' arrays (``filter.R``, ``kin.foot_pos``, ``est.q``...) are views of one state."""
+
+    initialized = _IntSlot(K.I_INIT, bool)
+    updates = _IntSlot(K.I_UPDATES)
+    _stale = _IntSlot(K.I_STALE)
+    _last_utime = _IntSlot(K.I_LAST_UTIME)
+    _alip_utime = _IntSlot(K.I_ALIP_UTIME)
 
     def __init__(self, params: EstimatorParams | None = None,
-                 model: mujoco.MjModel | None = None) -> None:
+                 model: mujoco.MjModel | None = None, fused: bool = True) -> None:
         t0 = time.perf_counter()
         self.params = p = params or EstimatorParams()
+        self.fused = fused
         self.kin = LegKinematics(model)
         m = self.kin.m
         site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "imu")
@@ -178,11 +159,7 @@ class CassieEstimator:
         self._qn_hi = (1.0 + lm.quat_norm_tol) ** 2
         self._view_pkt: OutputPacket | None = None
         self._view = np.zeros(_NFLOAT)
-        self.initialized = False
-        self.updates = 0
         self.restarts = 0
-        self._stale = 0
-        self._last_utime = 0
         self._gyro_prev = np.zeros(3)
         self._h = np.zeros((2, 3))
         self._sole_mode = np.zeros(2, dtype=np.int64)  # per foot: 0 mid-sole, -1 / +1 the end
@@ -190,16 +167,133 @@ class CassieEstimator:
         self._foot_speed = np.zeros(2)  # each foot's speed in the world, m/s
         self._quat = np.zeros(4)
         self._vb = np.zeros(3)
+        self._bind()
+        self.initialized = False
+        self.updates = 0
+        self._stale = 0
+        self._last_utime = 0
         self._alip_utime = 0
         # compile (or load from the on-disk cache) the kernels now, not on the first packet
-        _in_bounds(self._lo, self._lo, self._hi, 0.0, 2.0)
+        K._in_bounds(self._lo, self._lo, self._hi, 0.0, 2.0)
         self._sole_points(np.array((0.0, 0.0, 1.0)))
-        _foot_speeds(np.eye(3), np.zeros(3), np.zeros(3), self.kin.foot_pos, self.kin.foot_vel,
-                     self.r_imu, self._foot_speed)
+        K._foot_speeds(np.eye(3), np.zeros(3), np.zeros(3), self.kin.foot_pos,
+                       self.kin.foot_vel, self.r_imu, self._foot_speed)
+        if fused:  # an all-zero work buffer is rejected at once (version 0): no state changes
+            W, S, N, C, CI = self._args
+            K.run(K.PH_CHECK, False, False, W, np.zeros(OUTPUT_SIZE, np.uint8), S, N, C, CI)
         if (setup_s := time.perf_counter() - t0) > 3.0:
             log.info("estimator set up in %.1f s: numba compiled its kernels (first start on "
                      "this machine or after a code change; cached in __pycache__ from now)",
                      setup_s)
+
+    # -- the packed state ----------------------------------------------------------------------
+    def _bind(self) -> None:
+        """Move every part's state into ``kernels``' packed buffers (values kept) and make
+        the parts' arrays views of them: the fused step and the Python parts share one state."""
+        kin, f, c, est, a = self.kin, self.filter, self.contact, self.est, self.alip
+        nq, nv = kin.nq, kin.nv
+        sizes = {"KQ": nq, "KV": nv, "EQ": nq, "EV": nv, "TORQUE": NUM_MOTORS, "ACCEL": 3}
+        dyn, o = {}, K.S_FIXED
+        for name in K.S_DYNAMIC:
+            dyn[name] = o
+            o += sizes[name]
+        S = self._S = np.zeros(o)
+        N = self._N = np.zeros(K.I_SIZE, dtype=np.int64)
+
+        def view(off: int, like: np.ndarray) -> np.ndarray:
+            v = S[off:off + like.size].reshape(like.shape)
+            v[...] = like
+            return v
+
+        f.R, f.v, f.p = view(K.S_R, f.R), view(K.S_V, f.v), view(K.S_P, f.p)
+        f.d, f.P, f._scratch = view(K.S_D, f.d), view(K.S_COV, f.P), view(K.S_SCRATCH, f._scratch)
+        self._gyro_prev, self._h = view(K.S_GYRO_PREV, self._gyro_prev), view(K.S_H, self._h)
+        self._foot_speed = view(K.S_FOOT_SPEED, self._foot_speed)
+        self._quat, self._vb = view(K.S_QUAT, self._quat), view(K.S_VB, self._vb)
+        kin.foot_pos, kin.foot_axis = view(K.S_FOOT_POS, kin.foot_pos), view(K.S_FOOT_AXIS,
+                                                                              kin.foot_axis)
+        kin.foot_vel, kin.spring_defl = view(K.S_FOOT_VEL, kin.foot_vel), view(K.S_SPRING,
+                                                                               kin.spring_defl)
+        kin.com, kin.com_vel = view(K.S_COM_B, kin.com), view(K.S_COMVEL_B, kin.com_vel)
+        kin.angmom_com = view(K.S_ANGMOM_B, kin.angmom_com)
+        kin.q, kin.v = view(dyn["KQ"], kin.q), view(dyn["KV"], kin.v)
+        c.force = view(K.S_FORCE, c.force)
+        est.force, est.spring_defl = view(K.S_EST_FORCE, est.force), view(K.S_EST_SPRING,
+                                                                          est.spring_defl)
+        est.alip_x, est.alip_raw = view(K.S_ALIP_X, est.alip_x), view(K.S_ALIP_RAW,
+                                                                      est.alip_raw)
+        est.stance_pos = view(K.S_STANCE_POS, est.stance_pos)
+        est.com, est.com_vel = view(K.S_EST_COM, est.com), view(K.S_EST_COMVEL, est.com_vel)
+        est.q, est.v = view(dyn["EQ"], est.q), view(dyn["EV"], est.v)
+        S[K.S_KF_R:K.S_KF_R + 16] = a.kf.R.ravel()  # the ALIP filter of the fused step
+        S[K.S_KF_DT] = -1.0
+        self._sole_mode = N[K.I_MODE:K.I_MODE + 2]
+        N[K.I_EST_STANCE] = N[K.I_ALIP_STANCE] = -1
+        if self.fused:  # the flags the compiled step keeps; the reference keeps Python lists
+            f.contact = N[K.I_FC:K.I_FC + 2]
+            c.in_contact = N[K.I_CC:K.I_CC + 2]
+        #: what the process publishes: the int block (utime, status, ALIP stance, the two
+        #: contact flags, whether the ALIP fields changed, the target PC's status bits) and
+        #: the float block q (nq), v (nv), motor torques (10), IMU specific force (3)
+        self.out_ints = N[:K.I_OUT]
+        self.out_floats = S[dyn["EQ"]:dyn["ACCEL"] + 3]
+        self._torque_out = S[dyn["TORQUE"]:dyn["TORQUE"] + NUM_MOTORS]
+        self._accel_out = S[dyn["ACCEL"]:dyn["ACCEL"] + 3]
+        # constants
+        p = self.params
+        C = np.zeros(K.C_SIZE)
+        C[K.C_LO:K.C_LO + K.W_NCHECK] = self._lo
+        C[K.C_HI:K.C_HI + K.W_NCHECK] = self._hi
+        C[K.C_QN_LO], C[K.C_QN_HI] = self._qn_lo, self._qn_hi
+        C[K.C_R_IMU:K.C_R_IMU + 3] = self.r_imu
+        C[K.C_G:K.C_G + 3] = f.g
+        C[K.C_VAR_G], C[K.C_VAR_A], C[K.C_VAR_C] = f._var_g, f._var_a, f._var_c
+        C[K.C_VAR_S], C[K.C_KIN_VAR] = f._var_s, f._kin_var
+        C[K.C_GAIN:K.C_GAIN + 2] = c._gain
+        C[K.C_ON_N], C[K.C_OFF_N] = p.contact.on_n, p.contact.off_n
+        C[K.C_TD_SPEED] = p.contact.touchdown_speed_mps
+        C[K.C_FOOT_RADIUS], C[K.C_FOOT_HALF] = kin.foot_radius, kin.foot_half_length
+        C[K.C_MASS] = kin.mass
+        for off, arr in ((K.C_TGT_OFF, kin._tgt_off), (K.C_ACH_DIR, kin._ach_dir),
+                         (K.C_PLA_AXIS, kin._pla_axis), (K.C_PLA_TIP_PROJ, kin._pla_tip_proj),
+                         (K.C_ROD_TIP, kin._rod_tip), (K.C_FOOT_LOCAL, kin._foot_local),
+                         (K.C_SPRING_REF, kin.spring_ref)):
+            C[off:off + arr.size] = arr.ravel()
+        CI = np.zeros(K.CI_SIZE, dtype=np.int64)
+        for off, arr in ((K.CI_MOTOR_QPOS, kin.motor_qpos), (K.CI_MOTOR_DOF, kin.motor_dof),
+                         (K.CI_JOINT_QPOS, kin.joint_qpos), (K.CI_JOINT_DOF, kin.joint_dof),
+                         (K.CI_ACH_QPOS, kin._ach_qpos), (K.CI_PLA_QPOS, kin._pla_qpos),
+                         (K.CI_ACH_DOF, kin._ach_dof), (K.CI_PLA_DOF, kin._pla_dof),
+                         (K.CI_ROD_BODY, kin._rod_body), (K.CI_TGT_BODY, kin._tgt_body),
+                         (K.CI_FOOT_BODY, kin.foot_body), (K.CI_SPRING_QPOS, kin.spring_qpos)):
+            CI[off:off + arr.size] = np.asarray(arr).ravel()
+        m, d = kin.m, kin.d
+        CI[K.CI_PELVIS], CI[K.CI_NQ], CI[K.CI_NV], CI[K.CI_NBODY] = kin.pelvis, nq, nv, m.nbody
+        for name in K.S_DYNAMIC:
+            CI[K.CI_OFF[name]] = dyn[name]
+        CI[K.CI_FN:K.CI_FN + len(K.MJ_FUNCTIONS)] = K.mujoco_functions()
+        CI[K.CI_MODEL], CI[K.CI_DATA] = m._address, d._address
+        # MjData's arrays live as long as d (kin.d) and never move
+        for off, arr in ((K.CI_QPOS, kin._qpos), (K.CI_QVEL, kin._qvel), (K.CI_XPOS, kin._xpos),
+                         (K.CI_XMAT, kin._xmat), (K.CI_CVEL, kin._cvel),
+                         (K.CI_SUBTREE_COM, kin._subtree_com),
+                         (K.CI_SUBTREE_LINVEL, d.subtree_linvel),
+                         (K.CI_SUBTREE_ANGMOM, d.subtree_angmom)):
+            if not arr.flags.c_contiguous or arr.dtype != np.float64:
+                raise RuntimeError("MjData arrays are expected C-contiguous float64")
+            CI[off] = arr.ctypes.data
+        self._W = np.zeros(K.W_SIZE, dtype=np.uint8)
+        self._wmv = memoryview(self._W)[4:]  # the datagram's bytes go here
+        self._args = (self._W, S, N, C, CI)
+        self._pb_pkt: OutputPacket | None = None
+        self._pb = np.zeros(OUTPUT_SIZE, dtype=np.uint8)
+
+    def _buffer_of(self, pkt: OutputPacket) -> np.ndarray:
+        """A uint8 view of ``pkt``'s buffer (cached), which the fused step copies into."""
+        if self._pb_pkt is not pkt:
+            self._pb_pkt = pkt
+            self._pb = np.frombuffer(pkt.buffer, dtype=np.uint8)
+        return self._pb
 
     # -- validation --------------------------------------------------------------------------
     def check(self, pkt: OutputPacket) -> None:
@@ -208,7 +302,7 @@ class CassieEstimator:
         One vectorised comparison of all 56 doubles against per-field bounds; the reason is
         worked out only when a packet fails."""
         x = self._floats_of(pkt)
-        if not _in_bounds(x, self._lo, self._hi, self._qn_lo, self._qn_hi):
+        if not K._in_bounds(x, self._lo, self._hi, self._qn_lo, self._qn_hi):
             raise RejectedPacket(self._reason(pkt, x, float(x[0:4] @ x[0:4])))
         if self.initialized and pkt.utime <= self._last_utime:
             self._stale += 1
@@ -239,6 +333,67 @@ class CassieEstimator:
                     f"{self._hi[i]:.4g}]")
         return f"IMU quaternion norm {np.sqrt(n):.3f} is not 1"
 
+    # -- one datagram ------------------------------------------------------------------------
+    def step(self, data: bytes, pkt: OutputPacket, alip: bool = True) -> int:
+        """Validate, check and estimate from one raw datagram, decoding it into ``pkt``.
+
+        Raises ``PacketError`` (not a valid packet: ``OutputPacket.decode``'s message) or
+        ``RejectedPacket`` (``check``) as decode + check + update did; returns ``kernels.OK``,
+        or ``kernels.E_NONFINITE`` when the estimate is not finite (the caller drops it and
+        sets ``initialized = False``). The results are in ``out_ints``, ``out_floats``,
+        ``est.alip_x``, ``est.stance_pos``, ``est.spring_defl`` and ``est.force``; the
+        ``STATUS_PACKET_GAP`` bit is the caller's to add (it counts the link). ``alip``: as
+        for ``update``."""
+        if not self.fused:
+            pkt.decode(data)
+            self.check(pkt)
+            e = self._update_reference(pkt, False, alip)
+            n = self._N
+            n[K.I_UTIME], n[K.I_STATUS], n[K.I_EST_STANCE] = e.utime, e.status, e.alip_stance
+            n[K.I_FC], n[K.I_FC + 1] = e.in_contact
+            n[K.I_DIRTY], n[K.I_TARGET_STATUS] = 1, pkt.status
+            self._torque_out[:] = pkt.motor_torque
+            self._accel_out[:] = pkt.imu_accel
+            ok = (np.isfinite(e.q).all() and np.isfinite(e.v).all()
+                  and np.isfinite(e.alip_x).all())
+            return K.OK if ok else K.E_NONFINITE
+        if len(data) != OUTPUT_SIZE:
+            pkt.decode(data)  # raises PacketError, saying why
+        self._wmv[:] = data
+        code = self._run(K.PH_CHECK, alip, False, pkt)
+        if code == K.E_DECODE:
+            pkt.decode(data)  # raises PacketError, saying why
+            raise PacketError("robot output packet rejected by the estimator's decoder")
+        if code in (K.E_RANGE, K.E_STALE):
+            self.check(pkt)  # raises RejectedPacket, or re-initialises (a restarted target PC)
+            if code == K.E_RANGE:
+                raise RejectedPacket("packet rejected by the estimator's range check")
+            code = self._run(K.PH_KIN, alip, False, pkt)
+        return code
+
+    def _run(self, phase: int, alip: bool, gap: bool, pkt: OutputPacket) -> int:
+        """``kernels.run`` from ``phase``, serving the rare steps it leaves to Python."""
+        W, S, N, C, CI = self._args
+        pb = self._buffer_of(pkt)
+        code = K.run(phase, alip, gap, W, pb, S, N, C, CI)
+        while code > 0:
+            if code == K.NEED_INIT:
+                self._initialize(pkt)
+                phase = K.PH_ESTIMATE
+            elif code == K.NEED_SVD:  # keep R on SO(3) against round-off
+                u, _, vt = np.linalg.svd(self.filter.R)
+                self.filter.R[:] = u @ vt
+                phase = K.PH_ESTIMATE
+            else:  # NEED_ALIP_F: discretise the ALIP model for this step (AlipKalman._set_dt)
+                dt = float(S[K.S_ALIP_DT])
+                F, Q = self.alip.discretise(dt)
+                S[K.S_KF_F:K.S_KF_F + 16] = F.ravel()
+                S[K.S_KF_Q:K.S_KF_Q + 16] = Q.ravel()
+                S[K.S_KF_DT] = dt
+                phase = K.PH_ALIP
+            code = K.run(phase, alip, gap, W, pb, S, N, C, CI)
+        return code
+
     # -- the update --------------------------------------------------------------------------
     def update(self, pkt: OutputPacket, gap: bool = False, alip: bool = True) -> Estimate:
         """Estimate from one decoded packet (``check`` it first); ``gap``: packets were lost.
@@ -246,6 +401,18 @@ class CassieEstimator:
         ``alip``: also update the CoM, the angular momentum and the ALIP Kalman filter (the
         MPFC's input); the process asks for it on the packets it sends to the laptop (200 Hz),
         the rest of the estimate is updated on every packet."""
+        if not self.fused:
+            return self._update_reference(pkt, gap, alip)
+        self._wmv[:] = pkt.buffer
+        self._run(K.PH_KIN, alip, gap, pkt)
+        n, e = self._N, self.est
+        e.utime, e.status = int(n[K.I_UTIME]), int(n[K.I_STATUS])
+        e.alip_stance = int(n[K.I_EST_STANCE])
+        e.in_contact[0], e.in_contact[1] = bool(n[K.I_FC]), bool(n[K.I_FC + 1])
+        return e
+
+    def _update_reference(self, pkt: OutputPacket, gap: bool, alip: bool) -> Estimate:
+        """``update`` by the modular parts in Python (the reference of the fused step)."""
         kin, f = self.kin, self.filter
         kin.update(pkt.motor_pos, pkt.motor_vel, pkt.joint_pos, pkt.joint_vel)
         utime = pkt.utime
@@ -261,8 +428,8 @@ class CassieEstimator:
         switched = self._sole_points(f.R[2])
         # contact from the springs (a contact starts only on a slow foot), then the
         # contact-aided correction (Hartley Sec. 6)
-        _foot_speeds(f.R, f.v, pkt.imu_gyro, kin.foot_pos, kin.foot_vel, self.r_imu,
-                     self._foot_speed)
+        K._foot_speeds(f.R, f.v, pkt.imu_gyro, kin.foot_pos, kin.foot_vel, self.r_imu,
+                       self._foot_speed)
         self.contact.update(kin.spring_defl, self._foot_speed)
         flags = self.contact.in_contact
         h = self._h
@@ -285,8 +452,8 @@ class CassieEstimator:
         ``up`` is the world z axis in the pelvis frame. Returns which feet switched.
         """
         kin = self.kin
-        _sole_points(kin.foot_pos, kin.foot_axis, up, self.r_imu, kin.foot_radius,
-                     kin.foot_half_length, self._sole_mode, self._h, self._switched)
+        K._sole_points(kin.foot_pos, kin.foot_axis, up, self.r_imu, kin.foot_radius,
+                       kin.foot_half_length, self._sole_mode, self._h, self._switched)
         return self._switched
 
     def _initialize(self, pkt: OutputPacket) -> None:
@@ -304,6 +471,9 @@ class CassieEstimator:
         self.contact.in_contact[:] = [False, False]
         self.alip.stance = -1
         self.est.alip_stance = -1
+        n = self._N  # the same for the fused step's copies of the last two
+        n[K.I_ALIP_STANCE] = n[K.I_EST_STANCE] = -1
+        n[K.I_DIRTY] = 1
         self.updates = 0
         self.initialized = True
 

@@ -12,13 +12,18 @@ frame"); the estimator rotates results into the world with its base estimate. On
 
 from __future__ import annotations
 
-import math
-
 import mujoco
-import numba
 import numpy as np
 
 from runtime.cassie_packets import JOINT_NAMES, MOTOR_NAMES
+
+from .kernels import (
+    _assemble,
+    _feet_and_springs,
+    _foot_velocities,
+    _rod_velocities,
+    _solve_rods,
+)
 
 SIDES = ("left", "right")
 #: the spring joints whose deflection measures the load on each leg (Cassie's leaf springs)
@@ -37,167 +42,6 @@ def _quat_to_mat(quat: np.ndarray) -> np.ndarray:
     r = np.zeros(9)
     mujoco.mju_quat2Mat(r, np.asarray(quat, dtype=float))
     return r.reshape(3, 3)
-
-
-# -- compiled per-packet kernels (numba, cached on disk): at 2 kHz, Python and numpy per-call
-# costs on 3-vectors were most of the kinematics' time --------------------------------------
-_jit = numba.njit(cache=True, nogil=True)
-
-
-@_jit
-def _assemble(q: np.ndarray, v: np.ndarray, motor_pos: np.ndarray, motor_vel: np.ndarray,
-              joint_pos: np.ndarray, joint_vel: np.ndarray, motor_q: np.ndarray,
-              motor_d: np.ndarray, joint_q: np.ndarray, joint_d: np.ndarray,
-              ach_q: np.ndarray, pla_q: np.ndarray, qpos: np.ndarray) -> None:
-    """The measured joints into ``q``/``v`` (base at the origin, rods at zero), and ``qpos``."""
-    v[:] = 0.0
-    for i in range(motor_q.size):
-        q[motor_q[i]] = motor_pos[i]
-        v[motor_d[i]] = motor_vel[i]
-    for i in range(joint_q.size):
-        q[joint_q[i]] = joint_pos[i]
-        v[joint_d[i]] = joint_vel[i]
-    q[0:3] = 0.0
-    q[3], q[4], q[5], q[6] = 1.0, 0.0, 0.0, 0.0
-    for k in range(2):
-        i = ach_q[k]
-        q[i], q[i + 1], q[i + 2], q[i + 3] = 1.0, 0.0, 0.0, 0.0
-        q[pla_q[k]] = 0.0
-    qpos[:] = q
-
-
-@_jit
-def _solve_rods(xpos: np.ndarray, xmat: np.ndarray, q: np.ndarray, qpos: np.ndarray,
-                rod_body: np.ndarray, tgt_body: np.ndarray, tgt_off: np.ndarray,
-                ach_dir: np.ndarray, pla_axis: np.ndarray, pla_tip_proj: np.ndarray,
-                ach_q: np.ndarray, pla_q: np.ndarray) -> None:
-    """Closed-form rod angles so each rod tip meets its closure point (after pass 1).
-
-    Rods 0-1 are the achilles rods (ball joint: the shortest rotation taking the tip
-    direction onto the target direction), 2-3 the plantar rods (hinge: the signed angle
-    between the two directions projected on the hinge plane). Writes ``q`` and ``qpos``.
-    """
-    for k in range(4):
-        g = tgt_off[k]
-        a, b, xr, r = xmat[tgt_body[k]], xpos[tgt_body[k]], xpos[rod_body[k]], xmat[rod_body[k]]
-        # target point (world), minus the rod origin
-        e0 = b[0] + a[0] * g[0] + a[1] * g[1] + a[2] * g[2] - xr[0]
-        e1 = b[1] + a[3] * g[0] + a[4] * g[1] + a[5] * g[2] - xr[1]
-        e2 = b[2] + a[6] * g[0] + a[7] * g[1] + a[8] * g[2] - xr[2]
-        # u = R_rod^T e: the target in the rod's zero-angle frame
-        u0 = r[0] * e0 + r[3] * e1 + r[6] * e2
-        u1 = r[1] * e0 + r[4] * e1 + r[7] * e2
-        u2 = r[2] * e0 + r[5] * e1 + r[8] * e2
-        if k < 2:
-            t0, t1, t2 = ach_dir[k, 0], ach_dir[k, 1], ach_dir[k, 2]
-            n = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-            u0, u1, u2 = u0 / n, u1 / n, u2 / n
-            w = 1.0 + t0 * u0 + t1 * u1 + t2 * u2
-            x = t1 * u2 - t2 * u1
-            y = t2 * u0 - t0 * u2
-            z = t0 * u1 - t1 * u0
-            n = math.sqrt(w * w + x * x + y * y + z * z)
-            i = ach_q[k]
-            q[i], q[i + 1], q[i + 2], q[i + 3] = w / n, x / n, y / n, z / n
-        else:
-            a0, a1, a2 = pla_axis[k - 2, 0], pla_axis[k - 2, 1], pla_axis[k - 2, 2]
-            p0, p1, p2 = pla_tip_proj[k - 2, 0], pla_tip_proj[k - 2, 1], pla_tip_proj[k - 2, 2]
-            s = u0 * a0 + u1 * a1 + u2 * a2
-            u0, u1, u2 = u0 - s * a0, u1 - s * a1, u2 - s * a2
-            c0 = p1 * u2 - p2 * u1
-            c1 = p2 * u0 - p0 * u2
-            c2 = p0 * u1 - p1 * u0
-            q[pla_q[k - 2]] = math.atan2(c0 * a0 + c1 * a1 + c2 * a2,
-                                         p0 * u0 + p1 * u1 + p2 * u2)
-    qpos[:] = q
-
-
-@_jit
-def _feet_and_springs(xpos: np.ndarray, xmat: np.ndarray, foot_body: np.ndarray,
-                      foot_local: np.ndarray, foot_pos: np.ndarray, foot_axis: np.ndarray,
-                      q: np.ndarray, spring_q: np.ndarray, spring_ref: np.ndarray,
-                      spring_defl: np.ndarray) -> None:
-    """Each foot's capsule centre and axis (pelvis frame), and the spring deflections."""
-    for k in range(2):
-        b = foot_body[k]
-        r = xmat[b]
-        for i in range(3):
-            foot_pos[k, i] = xpos[b, i] + (r[3 * i] * foot_local[k, 0, 0]
-                                           + r[3 * i + 1] * foot_local[k, 1, 0]
-                                           + r[3 * i + 2] * foot_local[k, 2, 0])
-            foot_axis[k, i] = (r[3 * i] * foot_local[k, 0, 1] + r[3 * i + 1] * foot_local[k, 1, 1]
-                               + r[3 * i + 2] * foot_local[k, 2, 1])
-        for j in range(2):
-            spring_defl[k, j] = q[spring_q[k, j]] - spring_ref[k, j]
-
-
-@_jit
-def _foot_velocities(cvel: np.ndarray, subtree_com: np.ndarray, pelvis: int,
-                     foot_body: np.ndarray, foot_pos: np.ndarray, foot_vel: np.ndarray) -> None:
-    """Velocity of each foot's capsule centre relative to the pelvis (pelvis frame), from
-    ``cvel`` with the base at rest: v + w x (p - c) at the tree's subtree CoM ``c``."""
-    c0, c1, c2 = subtree_com[pelvis, 0], subtree_com[pelvis, 1], subtree_com[pelvis, 2]
-    for k in range(2):
-        w = cvel[foot_body[k]]
-        e0, e1, e2 = foot_pos[k, 0] - c0, foot_pos[k, 1] - c1, foot_pos[k, 2] - c2
-        foot_vel[k, 0] = w[3] + w[1] * e2 - w[2] * e1
-        foot_vel[k, 1] = w[4] + w[2] * e0 - w[0] * e2
-        foot_vel[k, 2] = w[5] + w[0] * e1 - w[1] * e0
-
-
-@_jit
-def _rod_velocities(xpos: np.ndarray, xmat: np.ndarray, cvel: np.ndarray,
-                    subtree_com: np.ndarray, v: np.ndarray, pelvis: int, rod_body: np.ndarray,
-                    tgt_body: np.ndarray, rod_tip: np.ndarray, tgt_off: np.ndarray,
-                    pla_axis: np.ndarray, ach_d: np.ndarray, pla_d: np.ndarray) -> None:
-    """Rod joint rates that keep the closures' relative velocity zero (min-norm for the
-    achilles ball joint, whose spin about its own axis is not constrained).
-
-    With the rod rates zero in ``cvel``, each tip moves rigidly with its parent; the rate
-    must make up the difference ``dv`` to the target's velocity: for the ball joint
-    ``w = r x dv / |r|^2`` (given to MuJoCo in the rod frame), for the hinge about ``a``
-    ``qdot = (a x r).dv / |a x r|^2``.
-    """
-    c0, c1, c2 = subtree_com[pelvis, 0], subtree_com[pelvis, 1], subtree_com[pelvis, 2]
-    for k in range(4):
-        # tip offset r from the rod origin and target offset g from its body, world
-        m, t = xmat[rod_body[k]], rod_tip[k]
-        r0 = m[0] * t[0] + m[1] * t[1] + m[2] * t[2]
-        r1 = m[3] * t[0] + m[4] * t[1] + m[5] * t[2]
-        r2 = m[6] * t[0] + m[7] * t[1] + m[8] * t[2]
-        a, g = xmat[tgt_body[k]], tgt_off[k]
-        g0 = a[0] * g[0] + a[1] * g[1] + a[2] * g[2]
-        g1 = a[3] * g[0] + a[4] * g[1] + a[5] * g[2]
-        g2 = a[6] * g[0] + a[7] * g[1] + a[8] * g[2]
-        # point velocities from cvel (rotation; linear at the subtree CoM): v + w x (p - c)
-        w, p = cvel[rod_body[k]], xpos[rod_body[k]]
-        e0, e1, e2 = p[0] + r0 - c0, p[1] + r1 - c1, p[2] + r2 - c2
-        v0 = w[3] + w[1] * e2 - w[2] * e1
-        v1 = w[4] + w[2] * e0 - w[0] * e2
-        v2 = w[5] + w[0] * e1 - w[1] * e0
-        w, p = cvel[tgt_body[k]], xpos[tgt_body[k]]
-        e0, e1, e2 = p[0] + g0 - c0, p[1] + g1 - c1, p[2] + g2 - c2
-        d0 = w[3] + w[1] * e2 - w[2] * e1 - v0
-        d1 = w[4] + w[2] * e0 - w[0] * e2 - v1
-        d2 = w[5] + w[0] * e1 - w[1] * e0 - v2
-        if k < 2:
-            n = r0 * r0 + r1 * r1 + r2 * r2
-            w0 = (r1 * d2 - r2 * d1) / n
-            w1 = (r2 * d0 - r0 * d2) / n
-            w2 = (r0 * d1 - r1 * d0) / n
-            i = ach_d[k]
-            v[i] = m[0] * w0 + m[3] * w1 + m[6] * w2
-            v[i + 1] = m[1] * w0 + m[4] * w1 + m[7] * w2
-            v[i + 2] = m[2] * w0 + m[5] * w1 + m[8] * w2
-        else:
-            x0, x1, x2 = pla_axis[k - 2, 0], pla_axis[k - 2, 1], pla_axis[k - 2, 2]
-            a0 = m[0] * x0 + m[1] * x1 + m[2] * x2
-            a1 = m[3] * x0 + m[4] * x1 + m[5] * x2
-            a2 = m[6] * x0 + m[7] * x1 + m[8] * x2
-            n0 = a1 * r2 - a2 * r1
-            n1 = a2 * r0 - a0 * r2
-            n2 = a0 * r1 - a1 * r0
-            v[pla_d[k - 2]] = (n0 * d0 + n1 * d1 + n2 * d2) / (n0 * n0 + n1 * n1 + n2 * n2)
 
 
 class LegKinematics:

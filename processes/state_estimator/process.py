@@ -29,7 +29,8 @@ from runtime.config import process_gains
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Context, Inbox, Node
 
-from .estimator import CassieEstimator, RejectedPacket
+from .estimator import STATUS_PACKET_GAP, CassieEstimator, RejectedPacket
+from .kernels import OK
 from .params import DEFAULT_GAINS_FILE, EstimatorParams
 
 log = logging.getLogger(__name__)
@@ -50,8 +51,12 @@ class StateEstimatorNode(Node):
     trigger_policy = "each"
     max_backlog = 40  # 20 ms of packets: beyond that, skip (and count) the oldest: bounded lag
 
-    def __init__(self, params: EstimatorParams | None = None) -> None:
+    def __init__(self, params: EstimatorParams | None = None, fused: bool = True) -> None:
         self.params = params or EstimatorParams()
+        self.fused = fused  # False: the modular Python estimator (the fused step's reference)
+        self._network_every = self.params.network_every
+        self._last_seq = -1
+        self._nq = self._nqv = 0
         self.estimator: CassieEstimator | None = None
         self.link = LinkCounter()
         self.pkt = OutputPacket()
@@ -65,10 +70,11 @@ class StateEstimatorNode(Node):
         self._contact = contact_t()
 
     def setup(self, ctx: Context) -> None:
-        self.estimator = CassieEstimator(self.params)
+        self.estimator = CassieEstimator(self.params, fused=self.fused)
         m = self.estimator.kin.m
         s = self._state
         s.num_positions, s.num_velocities, s.num_motors = int(m.nq), int(m.nv), 10
+        self._nq, self._nqv = int(m.nq), int(m.nq + m.nv)
 
     def _reject(self, reason: str) -> None:
         self.rejected += 1
@@ -82,59 +88,59 @@ class StateEstimatorNode(Node):
             return
         est = self.estimator
         assert est is not None
-        pkt = self.pkt
-        if (self._last_ok and len(data) == len(pkt.buffer) and data[0] == pkt.seq
+        pkt, link = self.pkt, self.link
+        if (self._last_ok and data[0] == self._last_seq and len(data) == len(pkt.buffer)
                 and bytes(data) == bytes(pkt.buffer)):
             # the same datagram again (lockstep resends a state whose answer was lost):
             # count it and answer it again, so the torque bridge re-sends its command
-            self.link.on_receive(pkt.seq, pkt.ack)
+            link.on_receive(data[0], data[1])
             ctx.publish("state", self._state)
             return
         self._last_ok = False
+        to_laptop = self.published % self._network_every == 0
+        failed = ""
         try:
-            pkt.decode(data)  # validates size, version, kind, finiteness
-            est.check(pkt)  # physically plausible ranges, utime advancing
+            # decode + range checks + estimate: one compiled call (CassieEstimator.step)
+            code = est.step(data, pkt, alip=to_laptop)
         except (PacketError, RejectedPacket) as exc:
-            self.link.on_error()
+            link.on_error()
             self._reject(str(exc))
             return
-        lost_before = self.link.lost
-        self.link.on_receive(pkt.seq, pkt.ack)
-        if self.link.lost != lost_before and (self._loss_logs < 10
-                                              or self.link.lost // 1000 > lost_before // 1000):
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+            code, failed = -1, f"estimator failed: {exc}"
+        lost_before = link.lost
+        link.on_receive(data[0], data[1])
+        if link.lost != lost_before and (self._loss_logs < 10
+                                         or link.lost // 1000 > lost_before // 1000):
             self._loss_logs += 1
             log.warning("lost %d robot-output packet(s) before seq %d (%d lost so far)",
-                        self.link.lost - lost_before, pkt.seq, self.link.lost)
-        try:
-            to_laptop = self.published % self.params.network_every == 0
-            e = est.update(pkt, gap=self.link.lost > lost_before, alip=to_laptop)
-            ok = bool(np.isfinite(e.q).all() and np.isfinite(e.v).all()
-                      and np.isfinite(e.alip_x).all())
-        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-            ok, e = False, None
-            self.last_error = f"estimator failed: {exc}"
-        if not ok:
+                        link.lost - lost_before, data[0], link.lost)
+        if code != OK:
             # never pass a broken estimate on: drop it and start again from the next packet
             self.estimator_resets += 1
             est.initialized = False
-            self._reject(self.last_error if e is None else "estimate became non-finite")
+            if failed:
+                self.last_error = failed
+            self._reject(failed or "estimate became non-finite")
             return
         self._last_ok = True  # pkt.buffer now holds the packet this state was estimated from
-        ctx.now_utime = e.utime  # a raw packet drove this tick: its utime is the sim time
+        self._last_seq = data[0]
+        utime, status, stance, c0, c1, alip_changed, target_status = est.out_ints.tolist()
+        ctx.now_utime = utime  # a raw packet drove this tick: its utime is the sim time
         s = self._state
-        s.header.utime = e.utime
-        s.q = e.q.tolist()
-        s.v = e.v.tolist()
-        s.motor_torque = pkt.motor_torque.tolist()
-        s.imu_accel = pkt.imu_accel.tolist()
-        s.alip_stance = e.alip_stance
-        s.alip_x = e.alip_x.tolist()
-        s.alip_stance_pos = e.stance_pos.tolist()
-        s.in_contact = list(e.in_contact)
-        s.status = int(e.status)
-        s.target_status = int(pkt.status)
-        s.packet_seq = int(pkt.seq)
-        s.packets_lost = self.link.lost
+        s.header.utime = utime
+        f = est.out_floats.tolist()  # q, v, motor torques, IMU specific force
+        nq, nv = self._nq, self._nqv
+        s.q, s.v, s.motor_torque, s.imu_accel = f[:nq], f[nq:nv], f[nv:-3], f[-3:]
+        if alip_changed:  # the ALIP fields change only on the laptop's packets (and a reset)
+            s.alip_stance = stance
+            s.alip_x = est.est.alip_x.tolist()
+            s.alip_stance_pos = est.est.stance_pos.tolist()
+        s.in_contact = [c0 != 0, c1 != 0]
+        s.status = status | STATUS_PACKET_GAP if link.lost > lost_before else status
+        s.target_status = target_status
+        s.packet_seq = data[0]
+        s.packets_lost = link.lost
         s.packets_rejected = self.rejected
         ctx.publish("state", s)
         if to_laptop:
@@ -143,10 +149,10 @@ class StateEstimatorNode(Node):
         if not ctx.due("contact"):  # decimated (processes.state_estimator.output_rate_hz)
             return
         c = self._contact
-        c.header.utime = e.utime
-        c.in_contact = list(e.in_contact)
-        c.spring_deflection = e.spring_defl.tolist()
-        c.force_estimate = e.force.tolist()
+        c.header.utime = utime
+        c.in_contact = [c0 != 0, c1 != 0]
+        c.spring_deflection = est.est.spring_defl.tolist()
+        c.force_estimate = est.est.force.tolist()
         ctx.publish("contact", c)
 
     def counters(self) -> dict[str, float]:
