@@ -28,7 +28,7 @@ from __future__ import annotations
 import logging
 import select
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import Any
 from urllib.parse import parse_qsl, urlencode, urlparse, urlunparse
 
@@ -281,11 +281,12 @@ class Bus:
         time.sleep(period_s)
         return self.handle_pending()
 
-    def handle_pending(self) -> int:
-        """Handle every message already waiting, on every domain, without waiting."""
+    def handle_pending(self, ready_fds: Collection[int] = ()) -> int:
+        """Handle every message already waiting, on every domain, without waiting.
+        ``ready_fds``: descriptors a poll just found readable (saves a check each)."""
         n = 0
         for rx in self._rx.values():
-            n += rx.drain()
+            n += rx.drain(rx.fileno() in ready_fds)
         return n
 
     @property

@@ -193,17 +193,18 @@ class LiveRunner:
     def _poll(self, timeout_s: float) -> None:
         """Wait up to ``timeout_s`` for the trigger (or any input, with a receive thread),
         then read everything waiting: LCM on every domain and every UDP port."""
+        ready: set[int] = set()
         if timeout_s > 0:
             if not self._fds:
                 self.stop_event.wait(timeout_s)
             else:
                 try:
-                    self._poller.poll(timeout_s * 1e3)
+                    ready = {fd for fd, _ in self._poller.poll(timeout_s * 1e3)}
                 except InterruptedError:
                     pass
-        self.bus.handle_pending()
+        self.bus.handle_pending(ready)
         for port in self._udp_in:
-            port.drain()
+            port.drain(port.fileno() in ready)
 
     def _stale_and_errors(self) -> None:
         self.timer.stale_skipped_total = sum(p.stale_skipped for p in self.ports.values())

@@ -44,17 +44,19 @@ class UdpReceiver(PortBuffer):
     def fileno(self) -> int:
         return self.sock.fileno()
 
-    def drain(self) -> int:
-        """Read every datagram waiting in the socket; returns how many."""
+    def drain(self, known_ready: bool = False) -> int:
+        """Read every datagram waiting in the socket; returns how many. ``known_ready``: the
+        caller's poll just said a datagram is there (one "is there more?" check saved)."""
         n = 0
-        ready, sock, buf = self._ready.poll, self.sock, self._buf
-        while ready(0):
+        ready, recv = self._ready.poll, self.sock.recv
+        while known_ready or ready(0):
+            known_ready = False
             try:
-                size = sock.recv_into(buf)
+                data = recv(65536)  # one copy, into a bytes object of the datagram's size
             except OSError:
                 break
             self._stamp_arrival()
-            self.put(bytes(buf[:size]))
+            self.put(data)
             n += 1
         return n
 

@@ -244,12 +244,14 @@ class UdpmReceiver:
                 self._route[channel] = hs
         return hs
 
-    def drain(self) -> int:
-        """Read every waiting datagram; returns the number of complete messages handled."""
+    def drain(self, known_ready: bool = False) -> int:
+        """Read every waiting datagram; returns the number of complete messages handled.
+        ``known_ready``: the caller's poll just said a datagram is there."""
         n = 0
         sock, buf, view, ready = self.sock, self._buf, self._view, self._ready.poll
         stamped = self.timestamps
-        while ready(0):
+        while known_ready or ready(0):
+            known_ready = False
             try:
                 if stamped:
                     size, anc, _, sender = sock.recvmsg_into([buf], 64)
