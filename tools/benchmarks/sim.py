@@ -1,42 +1,325 @@
-"""`cassie bench sim`: the MuJoCo target PC alone at wall-clock 2 kHz, with real UDP packets.
+"""`cassie bench sim`: the real sim process at 2 kHz under the live runner, with a UDP peer.
 
-This process runs the sim's real-time loop as the live runner does (absolute deadlines
-``t0 + k * 0.5 ms``, sleep then spin, missed slots skipped and counted as overruns): each tick
-takes the newest torque packet from its socket, steps the physics once (``mj_step`` in place),
-and sends the state packet. A peer *process* stands in for the NUC: it decodes every state and
-answers with a torque packet (zero torques, so the start-up holder keeps the robot standing).
-The depth camera renders at 30 Hz in its child process, as in the sim process, and its
-frame time is measured both there and alone. `step_cpu` is the loop thread's own CPU time per
-tick (the work, without preemption by other processes), `step` its wall time.
+The sim is the one of ``hw_config/sim.yaml`` (``sim.process.make_node``, the profile's gains
+and output rates, no depth camera as in that profile unless ``--camera``), run by
+``runtime.loops.LiveRunner`` in a process of its own pinned to the target PC's CPU, at
+SCHED_FIFO once set up (``runtime.scheduling``, as ``cassie run`` does). A peer *process* on the
+NUC's CPU (SCHED_FIFO, the state estimator's priority) stands in for the NUC: it decodes every
+state packet and answers it at once with a torque packet (zero torques, so the start-up
+holder keeps the robot standing). Both links are real UDP sockets on 127.0.0.1, on ports of
+the benchmark's own, and LCM runs on a multicast port of its own, so a stack running on the
+machine is neither heard nor disturbed.
+
+Figures come from the sim's own ``TIMING`` messages (the raw per-tick samples the runner
+publishes), after a warm-up: the process's CPU share of a core (all its threads, per window),
+the loop thread's CPU time per tick (``thread_time`` around the runner's input poll and the
+node's tick: the work, which preemption does not inflate) beside its wall time, the
+real-time factor (sim time over wall time), slots skipped (overruns) and deadline misses.
+
+``--baseline REV``: the sim of git revision REV (its ``sim/``, ``runtime/``, ``lcmtypes/`` and
+``hw_config/``, extracted with ``git archive``) is timed in the same run, in runs interleaved
+with this tree's (baseline, this, baseline, this, ...), so both see the same machine load; the
+table puts them side by side with their ratio. Nothing is asserted: the machine is shared.
 """
 
 from __future__ import annotations
 
 import argparse
-import gc
+import atexit
+import dataclasses
+import io
+import json
 import os
+import random
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tarfile
+import tempfile
 import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import print_table, summarize, write_json
+from tools.benchmarks.common import print_table, write_json
 
-PERIOD_S = 0.0005
+REPO = Path(__file__).resolve().parents[2]
+PERIOD_MS = 0.5
+#: what a baseline revision's sim needs from its tree
+SIM_TREE = ("sim", "runtime", "lcmtypes", "hw_config")
 
 
-def _peer(sim_port: int) -> int:
-    """The NUC stand-in: answer each state packet with a zero-torque packet."""
+# -- shared by the live benchmarks (this one and tools.benchmarks.bridge) -------------------
+
+
+def free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 nobody holds now."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = int(s.getsockname()[1])
+    s.close()
+    return port
+
+
+def bench_lcm_url() -> str:
+    """A multicast port of this benchmark's own (its host domains are the next few ports)."""
+    return f"udpm://239.255.76.67:{random.randrange(20000, 60000, 10)}"
+
+
+def extract_tree(rev: str, paths: Sequence[str]) -> Path:
+    """``paths`` of git revision ``rev`` of this repository in a temporary folder (removed
+    when the benchmark ends); SystemExit with git's reason when ``rev`` is not readable."""
+    try:
+        tar = subprocess.run(["git", "-C", str(REPO), "archive", rev, *paths], check=True,
+                             capture_output=True).stdout
+    except (OSError, subprocess.CalledProcessError) as exc:
+        err = getattr(exc, "stderr", b"") or b""
+        raise SystemExit(f"--baseline {rev}: cannot read {', '.join(paths)} at that revision "
+                         f"from git ({err.decode().strip() or exc}); give a commit of this "
+                         "repository") from exc
+    root = Path(tempfile.mkdtemp(prefix="cassie-bench-baseline-"))
+    atexit.register(shutil.rmtree, root, True)
+    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
+        tf.extractall(root, filter="data")
+    return root
+
+
+def use_tree(tree: str | None) -> Path:
+    """Import ``runtime``, ``sim``, ... from ``tree`` (a baseline) rather than this one; call
+    before importing any of them. Returns the tree's root."""
+    if not tree:
+        return REPO
+    root = Path(tree).resolve()
+    sys.path.insert(0, str(root))
+    return root
+
+
+def pin(cpus: Sequence[int] | None, fifo: int | None) -> list[str]:
+    """Pin this process to ``cpus`` and ask for SCHED_FIFO priority ``fifo`` (best effort:
+    what could not be applied is said, never raised)."""
+    notes = []
+    if cpus:
+        try:
+            os.sched_setaffinity(0, list(cpus))
+        except OSError as exc:
+            notes.append(f"affinity {list(cpus)} failed: {exc.strerror}")
+    if fifo:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(fifo)))
+        except OSError as exc:
+            notes.append(f"SCHED_FIFO {fifo} failed: {exc.strerror}")
+    return notes
+
+
+def machine_load() -> dict[str, float]:
+    """Load average and the cost of one tiny numpy op (us; a quiet VM: about 0.4-0.5)."""
+    a, b = np.zeros(3), np.ones(3)
+    samples = []
+    for _ in range(100):
+        t0 = time.perf_counter_ns()
+        for _ in range(50):
+            np.add(a, b)
+        samples.append((time.perf_counter_ns() - t0) / 50 / 1e3)
+    return {"load_avg_1min": os.getloadavg()[0], "ref_numpy_op_us": float(np.median(samples))}
+
+
+def collect_timing(child: subprocess.Popen[str], url: str, process: str,
+                   timeout_s: float) -> list[Any]:
+    """Every ``loop_timing_t`` of ``process`` on ``url``'s TIMING until ``child`` exits (or
+    ``timeout_s``). Polls every 50 ms, so this process never wakes per message."""
+    from lcmtypes import loop_timing_t
+    from runtime.bus import Bus
+
+    bus = Bus(url, source="bench")
+    sub = bus.subscribe("TIMING", loop_timing_t, "each", capacity=100_000)
+    msgs: list[Any] = []
+    end = time.monotonic() + timeout_s
+    try:
+        while time.monotonic() < end:
+            done = child.poll() is not None
+            bus.poll_every(0.05)
+            while (m := sub.pop()) is not None:
+                if m.process == process:
+                    msgs.append(m)
+            if done:
+                break
+    finally:
+        bus.close()
+    return msgs
+
+
+def loop_figures(msgs: list[Any], warmup_s: float) -> dict[str, Any]:
+    """Figures of one loop from its TIMING windows, dropping the first ``warmup_s``: the raw
+    per-tick samples (CPU and wall ms), the process's CPU share, rates and counters."""
+    windows = [m for m in msgs if m.ticks > 0]
+    t, keep = 0.0, []
+    for m in windows:
+        t += m.window_s
+        if t > warmup_s:
+            keep.append(m)
+    if len(keep) < 2:
+        return {"windows": len(keep)}
+    wall = sum(m.window_s for m in keep[1:])
+    cpu = np.concatenate([np.asarray(m.cpu_ms, dtype=float) for m in keep])
+    exe = np.concatenate([np.asarray(m.exec_ms, dtype=float) for m in keep])
+    late = np.concatenate([np.asarray(m.lateness_ms, dtype=float) for m in keep])
+    ticks = sum(m.ticks for m in keep)
+    first, last = keep[0], keep[-1]
+
+    def counter(m: Any, name: str) -> float:
+        names = list(m.counter_names)
+        return float(m.counter_values[names.index(name)]) if name in names else float("nan")
+
+    out: dict[str, Any] = {
+        "windows": len(keep),
+        "wall_s": wall,
+        "ticks": ticks,
+        "rate_hz": sum(m.ticks for m in keep[1:]) / wall,
+        "cpu_share": sum(m.process_cpu_share * m.window_s for m in keep[1:]) / wall,
+        "tick_cpu_median_ms": float(np.median(cpu)),
+        "tick_cpu_p90_ms": float(np.percentile(cpu, 90)),
+        "tick_cpu_p99_ms": float(np.percentile(cpu, 99)),
+        "tick_cpu_max_ms": float(cpu.max()),
+        "tick_cpu_mean_ms": float(cpu.mean()),
+        "tick_median_ms": float(np.median(exe)),
+        "tick_p99_ms": float(np.percentile(exe, 99)),
+        "tick_max_ms": float(exe.max()),
+        "late_median_ms": float(np.median(late)),
+        "late_p99_ms": float(np.percentile(late, 99)),
+        "deadline_miss_ratio": sum(m.deadline_misses for m in keep) / max(ticks, 1),
+        "overruns": int(last.overruns_total - first.overruns_total),
+        "stale_skipped": int(last.stale_skipped_total - first.stale_skipped_total),
+        "decode_errors": int(last.decode_errors_total - first.decode_errors_total),
+        "_first": first,
+        "_last": last,
+        "_counter": counter,
+    }
+    return out
+
+
+def public(fig: dict[str, Any]) -> dict[str, Any]:
+    """The figures without the private helpers ``loop_figures`` keeps for its callers."""
+    return {k: v for k, v in fig.items() if not k.startswith("_")}
+
+
+def merge_runs(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """Figures of several runs of one variant: medians of the per-run figures, except the
+    tails (max of the per-run p99/max) and the sums."""
+    runs = [public(r) for r in runs if r.get("windows", 0) >= 2]
+    if not runs:
+        return {}
+    out: dict[str, Any] = {"runs": len(runs)}
+    for k in runs[0]:
+        vals = [r[k] for r in runs if isinstance(r.get(k), (int, float))]
+        if not vals:
+            continue
+        if k in ("ticks", "windows", "wall_s", "overruns", "stale_skipped", "decode_errors",
+                 "lost_slots", "catch_up_steps", "sim_overruns", "packets_lost_by_peer",
+                 "sink_received", "lost"):
+            out[k] = sum(vals)
+        elif k.endswith(("_max_ms", "_p99_ms")):
+            out[k] = max(vals)
+        else:
+            out[k] = float(np.median(vals))
+    return out
+
+
+def side_by_side_rows(base: dict[str, Any], this: dict[str, Any], rows: Sequence[tuple[str, str]]
+                      ) -> list[tuple[str, str]]:
+    """``label: baseline -> this (ratio)`` for each (label, figure key) present in both."""
+    out = []
+    for label, key in rows:
+        a, b = base.get(key), this.get(key)
+        if not isinstance(a, (int, float)) or not isinstance(b, (int, float)):
+            continue
+        ratio = f"  ({b / a:.2f}x)" if a else ""
+        out.append((label, f"{a:.4g} -> {b:.4g}{ratio}"))
+    return out
+
+
+def start_child(role_args: list[str], env: dict[str, str], module: str) -> subprocess.Popen[str]:
+    """``python -m module ROLE_ARGS`` as a child of this benchmark: stdout piped (a few
+    lines), stderr into a temporary file (a log the child writes never blocks it)."""
+    err = tempfile.TemporaryFile(mode="w+")  # noqa: SIM115 (closed by stop_child)
+    p = subprocess.Popen([sys.executable, "-m", module, *role_args], cwd=REPO, env=env,
+                         stdout=subprocess.PIPE, stderr=err, text=True)
+    p.stderr_file = err  # type: ignore[attr-defined]
+    return p
+
+
+def stop_child(p: subprocess.Popen[str], timeout_s: float = 5.0) -> tuple[str, str]:
+    """SIGTERM (if still running), then SIGKILL after ``timeout_s``; returns its stdout and
+    stderr."""
+    if p.poll() is None:
+        p.send_signal(signal.SIGTERM)
+    try:
+        out, _ = p.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        out, _ = p.communicate()
+    err = p.stderr_file  # type: ignore[attr-defined]
+    err.seek(0)
+    text = err.read()
+    err.close()
+    return out or "", text
+
+
+def child_env(url: str) -> dict[str, str]:
+    env = dict(os.environ)
+    env["CASSIE_LCM_URL"] = url
+    env.setdefault("MENAGERIE_ROOT", "/work/shared/menagerie")
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
+
+
+def contend(mb: float, cpus: list[int]) -> int:
+    """A stand-in for the other work on a CPU (the laptop's solvers share the target PC's CPU
+    in ``hw_config/hosts.yaml``): at nice 19 on ``cpus``, sweep ``mb`` MB of memory over and
+    over, so every tick of a loop there starts with caches the sweep has evicted, as it does
+    in the running stack. Preempted at once by a SCHED_FIFO loop; runs until SIGTERM."""
+    pin(cpus, None)
+    os.nice(19)
+    a = np.ones(max(1, int(mb * 2**20 / 8)))
+    stop = False
+
+    def on_sig(*_: object) -> None:
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGTERM, on_sig)
+    print("ready", flush=True)
+    while not stop:
+        a.sum()
+    return 0
+
+
+def start_contender(mb: float, cpus: list[int], module: str) -> subprocess.Popen[str] | None:
+    """``contend`` in a child process (None when ``mb`` is 0)."""
+    if mb <= 0:
+        return None
+    p = start_child(["--role", "contend", "--mb", str(mb), "--cpus", ",".join(map(str, cpus))],
+                    dict(os.environ), module)
+    assert p.stdout is not None
+    p.stdout.readline()
+    return p
+
+
+# -- this benchmark's processes --------------------------------------------------------------
+
+
+def _peer(listen_port: int, send_port: int, cpus: list[int], fifo: int) -> int:
+    """The NUC stand-in: answer each state packet at once with a zero-torque packet."""
     from runtime.cassie_packets import InputPacket, LinkCounter, OutputPacket, PacketError
 
+    notes = pin(cpus, fifo)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.connect(("127.0.0.1", sim_port))
-    sock.settimeout(5.0)
-    print(sock.getsockname()[1], flush=True)
+    sock.bind(("127.0.0.1", listen_port))
+    sock.settimeout(0.2)
+    dest = ("127.0.0.1", send_port)
     state, cmd, link = OutputPacket(), InputPacket(), LinkCounter()
     buf = bytearray(2048)
     view = memoryview(buf)
@@ -47,12 +330,11 @@ def _peer(sim_port: int) -> int:
         stop = True
 
     signal.signal(signal.SIGTERM, on_sig)
+    print("ready", flush=True)
     while not stop:
         try:
             n = sock.recv_into(buf)
         except (TimeoutError, InterruptedError):
-            break
-        except ConnectionRefusedError:
             continue
         try:
             state.decode(view[:n])
@@ -61,179 +343,207 @@ def _peer(sim_port: int) -> int:
             continue
         link.on_receive(state.seq, state.ack)
         try:
-            sock.send(cmd.encode(link.next_seq(), link.last_peer_seq))
-        except ConnectionRefusedError:
+            sock.sendto(cmd.encode(link.next_seq(), link.last_peer_seq), dest)
+        except OSError:
             pass
-    print(f"peer: {link.summary()}", file=sys.stderr, flush=True)
+    print(json.dumps({"received": link.received, "lost": link.lost, "malformed": link.malformed,
+                      "max_round_trip_cycles": link.max_round_trip_cycles, "notes": notes}),
+          flush=True)
     return 0
 
 
-def _spin_until(deadline_ns: int, spin_ns: int) -> None:
-    rest = deadline_ns - time.monotonic_ns() - spin_ns
-    if rest > 0:
-        time.sleep(rest / 1e9)
-    while time.monotonic_ns() < deadline_ns:
-        pass
+def _sim(tree: str | None, out_port: int, in_port: int, seconds: float, terrain: str,
+         camera: bool) -> int:
+    """The sim of ``tree``'s ``hw_config/sim.yaml`` under the live runner, its UDP links moved
+    to the benchmark's ports."""
+    root = use_tree(tree)
+    import importlib
+    import logging
+
+    from runtime.config import load_profile
+    from runtime.config_types import ChannelConfig
+    from runtime.loops import LiveRunner
+    from runtime.scheduling import apply_scheduling
+
+    logging.basicConfig(level=logging.WARNING, format="%(name)s %(levelname)s: %(message)s")
+    profile = load_profile(root / "hw_config" / "sim.yaml")
+    proc = profile.processes["sim"]
+    out_ch = ChannelConfig("robot_output", f"udp:127.0.0.1:{out_port}", ("127.0.0.1", out_port))
+    in_ch = ChannelConfig("robot_input", f"udp:127.0.0.1:{in_port}", ("127.0.0.1", in_port))
+    params = {**proc.params, "terrain": terrain}
+    if camera:
+        params["camera_render"] = "process"
+    proc = dataclasses.replace(proc, inputs={**proc.inputs, "command": in_ch},
+                               outputs={**proc.outputs, "robot_output": out_ch}, params=params)
+    profile = dataclasses.replace(profile, processes={**profile.processes, "sim": proc})
+    for note in apply_scheduling(proc):
+        if "failed" in note:
+            print(note, file=sys.stderr)
+    node = importlib.import_module(proc.module).make_node(proc, profile)
+    return LiveRunner(node, proc, profile).run(duration_s=seconds)
+
+
+def _run_once(tree: Path | None, args: argparse.Namespace, nuc_cpus: list[int],
+              sim_cpus: list[int], peer_fifo: int) -> dict[str, Any]:
+    """One live run of the sim of ``tree`` (None: this one) against a fresh peer."""
+    url = bench_lcm_url()
+    env = child_env(url)
+    out_port, in_port = free_udp_port(), free_udp_port()
+    mod = "tools.benchmarks.sim"
+    peer = start_child(["--role", "peer", "--ports", str(out_port), str(in_port), "--cpus",
+                        ",".join(map(str, nuc_cpus)), "--fifo", str(peer_fifo)], env, mod)
+    assert peer.stdout is not None
+    if peer.stdout.readline().strip() != "ready":
+        raise SystemExit(f"the peer did not start: {stop_child(peer)[1]}")
+    cmd = ["--role", "sim", "--ports", str(out_port), str(in_port), "--seconds",
+           str(args.seconds + args.warmup), "--terrain", args.terrain]
+    if tree is not None:
+        cmd += ["--tree", str(tree)]
+    if args.camera:
+        cmd.append("--camera")
+    hog = start_contender(args.contend, sim_cpus, mod)
+    sim = start_child(cmd, env, mod)
+    try:
+        msgs = collect_timing(sim, url, "sim", args.seconds + args.warmup + 120.0)
+        sim.wait(timeout=30.0)
+    finally:
+        _, sim_err = stop_child(sim)
+        peer_out, peer_err = stop_child(peer)
+        if hog is not None:
+            stop_child(hog)
+    if sim.returncode != 0:
+        raise SystemExit(f"the sim exited with {sim.returncode}:\n{sim_err[-3000:]}")
+    fig = loop_figures(msgs, args.warmup)
+    if fig.get("windows", 0) < 2:
+        raise SystemExit(f"no TIMING from the sim after the warm-up:\n{sim_err[-3000:]}")
+    c, first, last = fig.pop("_counter"), fig.pop("_first"), fig.pop("_last")
+    wall = fig["wall_s"]
+    fig["realtime_factor"] = (c(last, "sim_time_s") - c(first, "sim_time_s")) / wall
+    for name, key in (("lost_slots", "lost_slots"), ("catch_up_steps", "catch_up_steps"),
+                      ("overruns", "sim_overruns")):
+        fig[key] = int(c(last, name) - c(first, name))
+    fig["overrun_ratio"] = fig["overruns"] / max(fig["overruns"] + fig["ticks"], 1)
+    try:
+        pr = json.loads(peer_out.strip().splitlines()[-1])
+        fig["packets_lost_by_peer"] = int(c(last, "commands_lost") - c(first, "commands_lost"))
+        fig["peer_received"] = pr["received"]
+        fig["round_trip_max_cycles"] = pr["max_round_trip_cycles"]
+        if pr["notes"]:
+            print("peer:", "; ".join(pr["notes"]), file=sys.stderr)
+    except (ValueError, IndexError, KeyError):
+        print(f"peer: no summary ({peer_err.strip()[-500:]})", file=sys.stderr)
+    if sim_err.strip():
+        warn = [ln for ln in sim_err.splitlines() if "failed" in ln or "Error" in ln]
+        for ln in warn[:5]:
+            print("sim:", ln, file=sys.stderr)
+    return fig
+
+
+ROWS = (
+    ("CPU share of a core", "cpu_share"),
+    ("tick CPU median (ms)", "tick_cpu_median_ms"),
+    ("tick CPU p90 (ms)", "tick_cpu_p90_ms"),
+    ("tick CPU p99 (ms)", "tick_cpu_p99_ms"),
+    ("tick wall median (ms)", "tick_median_ms"),
+    ("tick wall p99 (ms)", "tick_p99_ms"),
+    ("start lateness p99 (ms)", "late_p99_ms"),
+    ("real-time factor", "realtime_factor"),
+    ("slots skipped (overruns)", "overruns"),
+    ("overrun ratio", "overrun_ratio"),
+    ("deadline miss ratio", "deadline_miss_ratio"),
+    ("ticks", "ticks"),
+)
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="cassie bench sim", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="cassie bench sim", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", metavar="FILE", help="write the figures as one flat JSON object")
-    ap.add_argument("--seconds", type=float, default=10.0, help="length of the 2 kHz run")
-    ap.add_argument("--terrain", default="stairs", help="terrain generator (default: stairs)")
-    ap.add_argument("--no-camera", action="store_true", help="run without the depth renderer")
-    ap.add_argument("--spin-us", type=float, default=150.0, help="spin before each deadline")
-    ap.add_argument("--peer", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--seconds", type=float, default=5.0,
+                    help="timed seconds of each run (after the warm-up; default 5)")
+    ap.add_argument("--warmup", type=float, default=1.0, help="seconds left out at the start")
+    ap.add_argument("--repeats", type=int, default=2, help="runs of each variant (default 2)")
+    ap.add_argument("--terrain", default="flat", help="terrain (default: flat, as sim.yaml)")
+    ap.add_argument("--camera", action="store_true",
+                    help="with the depth camera rendering in its child process (sim.yaml "
+                         "turns it off)")
+    ap.add_argument("--contend", metavar="MB", type=float, default=8.0,
+                    help="a nice-19 process on the sim's CPU sweeping MB of memory, as the "
+                         "laptop's solvers share that CPU in the stack (default 8; 0: none)")
+    ap.add_argument("--baseline", metavar="REV",
+                    help="also run the sim of git revision REV, interleaved with this tree's")
+    ap.add_argument("--role", choices=("peer", "sim", "contend"), help=argparse.SUPPRESS)
+    ap.add_argument("--mb", type=float, default=0.0, help=argparse.SUPPRESS)
+    ap.add_argument("--ports", type=int, nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--tree", help=argparse.SUPPRESS)
+    ap.add_argument("--cpus", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--fifo", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
-    if args.peer is not None:
-        return _peer(args.peer)
+    if args.role == "peer":
+        return _peer(*args.ports, [int(c) for c in args.cpus.split(",") if c], args.fifo)
+    if args.role == "contend":
+        return contend(args.mb, [int(c) for c in args.cpus.split(",") if c])
+    if args.role == "sim":
+        return _sim(args.tree, *args.ports, args.seconds, args.terrain, args.camera)
 
     os.environ.setdefault("MENAGERIE_ROOT", "/work/shared/menagerie")
-    from sim.camera import CameraConfig, DepthCamera, ProcessDepthRenderer
-    from sim.target_pc import SimConfig, TargetPC, make_core
-    from sim.terrain import generate
+    from runtime.config import load_profile
 
-    load_before = os.getloadavg()[0]
-    terrain = generate(args.terrain)
-    sim_cfg = SimConfig()
-    tpc = TargetPC(make_core(terrain, sim_cfg), "realtime")
-    core = tpc.core
-
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.setblocking(False)
-    peer = subprocess.Popen(
-        [sys.executable, "-m", "tools.benchmarks.sim", "--peer", str(sock.getsockname()[1])],
-        stdout=subprocess.PIPE, text=True,
-    )
-    try:
-        assert peer.stdout is not None
-        sock.connect(("127.0.0.1", int(peer.stdout.readline())))
-
-        # depth: alone first (the frame time with nothing else running in this process)
-        cam_cfg = CameraConfig()
-        cam = DepthCamera(core.m, cam_cfg)
-        alone = []
-        for _ in range(30):
-            t = time.perf_counter()
-            cam.render(core.d.qpos)
-            alone.append(time.perf_counter() - t)
-        renderer = None
-        if not args.no_camera:
-            h = sim_cfg.holder
-            renderer = ProcessDepthRenderer((terrain, sim_cfg.impratio,
-                                             (h.timeconst_s, h.dampratio)), cam_cfg)
-            renderer.wait_ready()
-
-        n_max = int(args.seconds / PERIOD_S) + 10
-        step = np.zeros(n_max)
-        cpu = np.zeros(n_max)  # this thread's CPU time per tick: the work, without preemption
-        late = np.zeros(n_max)
-        rx_bufs = (bytearray(2048), bytearray(2048))
-        rx_views = (memoryview(rx_bufs[0]), memoryview(rx_bufs[1]))
-        period_ns = int(PERIOD_S * 1e9)
-        spin_ns = int(args.spin_us * 1e3)
-        depth_every = round(1.0 / cam_cfg.rate_hz / PERIOD_S)
-        render_times: list[float] = []
-        gc.collect()
-        gc.freeze()
-        gc.disable()
-        t0 = time.monotonic_ns()
-        end_ns = t0 + int(args.seconds * 1e9)
-        sim0 = core.time
-        k = 0
-        i = 0
-        overruns = 0
-        while True:
-            scheduled = t0 + k * period_ns
-            _spin_until(scheduled, spin_ns)
-            start = time.monotonic_ns()
-            cpu0 = time.thread_time_ns()
-            got = 0
-            cur = 0
-            while True:  # apply the newest datagram; account the ones it supersedes
-                try:
-                    n = sock.recv_into(rx_bufs[cur])
-                except (BlockingIOError, InterruptedError):
-                    break
-                if got:
-                    tpc.receive(rx_views[1 - cur][:got])
-                got = n
-                cur = 1 - cur
-            out = tpc.realtime_cycle(rx_views[1 - cur][:got] if got else None)
-            try:
-                sock.send(out)
-            except ConnectionRefusedError:
-                pass
-            if renderer is not None and core.steps % depth_every == 0:
-                frame = renderer.poll()
-                if frame is not None:
-                    render_times.append(frame.render_s)
-                renderer.request(core.d.qpos, core.utime)
-            cpu[i] = (time.thread_time_ns() - cpu0) / 1e6
-            end = time.monotonic_ns()
-            step[i] = (end - start) / 1e6
-            late[i] = (start - scheduled) / 1e6
-            tpc.stats.record((end - start) / 1e9, core.time, 0)
-            i += 1
-            k += 1
-            if end > t0 + k * period_ns:  # missed the next slot: skip, never catch up in bursts
-                k_new = (end - t0) // period_ns + 1
-                overruns += k_new - k
-                k = k_new
-            if end >= end_ns:
-                break
-        wall = (time.monotonic_ns() - t0) / 1e9
-        gc.enable()
-        sim_elapsed = core.time - sim0
-        dropped = 0
-        if renderer is not None:
-            time.sleep(0.1)
-            frame = renderer.poll()
-            if frame is not None:
-                render_times.append(frame.render_s)
-            dropped = renderer.dropped
-            renderer.close()
-    finally:
-        peer.send_signal(signal.SIGTERM)
-        try:
-            peer.wait(timeout=5.0)
-        except subprocess.TimeoutExpired:
-            peer.kill()
-        sock.close()
-
-    step = step[:i]
-    cpu = cpu[:i]
-    late = late[:i]
-    figures: dict[str, object] = {
+    profile = load_profile(REPO / "hw_config" / "sim.yaml")
+    est = profile.processes["state_estimator"]
+    nuc_cpus = list(est.cpu_affinity or ())
+    sim_cpus = list(profile.processes["sim"].cpu_affinity or ())
+    pin(nuc_cpus, None)  # this process reads TIMING on the NUC's CPU, away from the sim's
+    base_tree = extract_tree(args.baseline, SIM_TREE) if args.baseline else None
+    variants: list[tuple[str, Path | None]] = [("this", None)]
+    if base_tree is not None:
+        variants.insert(0, ("baseline", base_tree))
+    load0 = machine_load()
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _ in variants}
+    for k in range(args.repeats):
+        for name, tree in variants:
+            fig = _run_once(tree, args, nuc_cpus, sim_cpus, est.rt_priority or 0)
+            runs[name].append(fig)
+            print(f"run {k + 1}/{args.repeats} {name}: CPU share {fig['cpu_share']:.3f}, tick "
+                  f"CPU median {fig['tick_cpu_median_ms'] * 1e3:.1f} us, p99 "
+                  f"{fig['tick_cpu_p99_ms'] * 1e3:.1f} us, rtf {fig['realtime_factor']:.3f}",
+                  flush=True)
+    load1 = machine_load()
+    merged = {name: merge_runs(r) for name, r in runs.items()}
+    figures: dict[str, Any] = {
+        "description": f"sim of hw_config/sim.yaml under LiveRunner (CPU {sim_cpus}, SCHED_FIFO "
+                       f"{profile.processes['sim'].rt_priority}), peer process answering each "
+                       f"state (CPU {nuc_cpus}); {args.terrain}, camera "
+                       f"{'on' if args.camera else 'off'}; contender sweeping "
+                       f"{args.contend:g} MB on the sim's CPU; {args.repeats} x "
+                       f"{args.seconds:g} s",
         "terrain": args.terrain,
-        "camera_process": renderer is not None,
-        "duration_s": wall,
-        "ticks": i,
-        "slots": k,
+        "camera": args.camera,
+        "contend_mb": args.contend,
+        "seconds_per_run": args.seconds,
+        "repeats": args.repeats,
+        "load_avg_1min_before": load0["load_avg_1min"],
+        "load_avg_1min_after": load1["load_avg_1min"],
+        "ref_numpy_op_us": max(load0["ref_numpy_op_us"], load1["ref_numpy_op_us"]),
     }
-    figures.update(summarize(step, "step"))
-    figures.update(summarize(cpu, "step_cpu"))
-    figures.update(summarize(late, "start_late"))
-    figures.update({
-        "step_over_period_fraction": float((step > PERIOD_S * 1e3).mean()),
-        "overruns": overruns,
-        "overrun_fraction": overruns / max(k, 1),
-        "realtime_factor": sim_elapsed / wall,
-        "packets_sent": tpc.link.sent,
-        "packets_received": tpc.link.received,
-        "packets_lost_by_peer": tpc.link.lost,
-        "round_trip_max_cycles": tpc.link.max_round_trip_cycles,
-        "malformed": tpc.link.malformed,
-        "depth_size": f"{cam_cfg.out_width}x{cam_cfg.out_height}",
-        "load_avg_1min_before": load_before,
-        "load_avg_1min_after": os.getloadavg()[0],
-    })
-    figures.update(summarize(np.array(alone) * 1e3, "depth_alone"))
-    if render_times:
-        figures.update(summarize(np.array(render_times) * 1e3, "depth_in_loop"))
-        figures["depth_frames_dropped"] = dropped
-    print_table("sim: target PC alone at 2 kHz (mj_step + UDP packet I/O)", figures)
+    for name, fig in merged.items():
+        prefix = "" if name == "this" else "baseline_"
+        figures.update({f"{prefix}{k}": v for k, v in fig.items()})
+    this = merged["this"]
+    print_table("sim at 2 kHz under LiveRunner (this tree)",
+                [(label, this.get(key)) for label, key in ROWS if key in this] + [
+                    ("packets lost (peer -> sim)", this.get("packets_lost_by_peer")),
+                    ("round trip max (cycles)", this.get("round_trip_max_cycles")),
+                    ("load average before / after",
+                     f"{load0['load_avg_1min']:.2f} / {load1['load_avg_1min']:.2f}"),
+                    ("tiny numpy op (us)", figures["ref_numpy_op_us"])])
+    if args.baseline:
+        figures["baseline_rev"] = args.baseline
+        for key in ("cpu_share", "tick_cpu_median_ms", "tick_cpu_p99_ms"):
+            if key in this and key in merged["baseline"]:
+                figures[f"{key.removesuffix('_ms')}_ratio"] = this[key] / merged["baseline"][key]
+        print_table(f"side by side: baseline {args.baseline} -> this tree ({args.repeats} "
+                    "interleaved runs each)", side_by_side_rows(merged["baseline"], this, ROWS))
     write_json(args.json, "sim", figures)
     return 0
 
