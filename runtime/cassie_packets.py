@@ -41,8 +41,9 @@ exactly the layout's size, the version or kind byte is wrong, or any float is Na
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
+import numba
 import numpy as np
 
 PROTOCOL_VERSION = 1
@@ -94,6 +95,7 @@ INPUT_LAYOUT = np.dtype([*_HEADER_FIELDS, ("torque", "<f8", (NUM_MOTORS,)), ("fl
 
 OUTPUT_SIZE = OUTPUT_LAYOUT.itemsize  # 476
 INPUT_SIZE = INPUT_LAYOUT.itemsize  # 88
+_FLAGS_AT = INPUT_LAYOUT.fields["flags"][1]  # byte offset of InputPacket.flags
 
 
 class PacketError(ValueError):
@@ -104,7 +106,8 @@ class Packet:
     """One preallocated packet: a byte buffer plus named numpy views onto its fields.
 
     Writing a field view (``pkt.motor_pos[:] = q``) writes the bytes in place, so encoding at
-    2 kHz allocates nothing; ``decode`` validates a datagram, then copies it into the buffer.
+    2 kHz allocates nothing; ``decode`` validates a datagram and copies it into the buffer in
+    one compiled call.
     """
 
     LAYOUT: ClassVar[np.dtype] = OUTPUT_LAYOUT
@@ -114,15 +117,20 @@ class Packet:
     def __init__(self) -> None:
         self.buffer = bytearray(self.LAYOUT.itemsize)
         self.view = memoryview(self.buffer)
+        #: the packet's bytes as a numpy array (for compiled code filling the packet)
+        self.bytes_array = np.frombuffer(self.buffer, dtype=np.uint8)
         self._record = np.frombuffer(self.buffer, dtype=self.LAYOUT)  # shape (1,), writable
-        self._float_spans = _float_spans(self.LAYOUT)
-        # decode validates a copy in this staging buffer, so the hot path allocates nothing
-        self._stage = bytearray(self.LAYOUT.itemsize)
-        self._stage_views = [np.frombuffer(self._stage, "<f8", c, o) for o, c, _ in
-                             self._float_spans]
-        self._finite = [np.zeros(v.size, dtype=bool) for v in self._stage_views]
+        # what decode checks, for the compiled check: version, kind, then the byte offset
+        # of every float64 of the layout (each must be finite)
+        self._check_spec = np.array(
+            [PROTOCOL_VERSION, self.KIND, *(o + 8 * k for o, c, _ in _float_spans(self.LAYOUT)
+                                            for k in range(c))], dtype=np.int64)
+        #: the layout's float64 fields as one array (they are adjacent: ``float_block``)
+        offset, count = float_block(self.LAYOUT)
+        self.floats = np.frombuffer(self.buffer, dtype="<f8", count=count, offset=offset)
         self._record["version"] = PROTOCOL_VERSION
         self._record["kind"] = self.KIND
+        _check_and_copy(b"", self.bytes_array, self._check_spec)  # compiled (or cached) now
 
     def field(self, name: str) -> np.ndarray:
         """A writable view of one field (shape () for scalars, (n,) for arrays)."""
@@ -130,17 +138,17 @@ class Packet:
 
     @property
     def seq(self) -> int:
-        return int(self._record["seq"][0])
+        return self.buffer[0]
 
     @property
     def ack(self) -> int:
-        return int(self._record["ack"][0])
+        return self.buffer[1]
 
     def encode(self, seq: int, ack: int) -> memoryview:
         """Stamp the header and return the packet's bytes (a view: copy before reuse)."""
-        rec = self._record
-        rec["seq"] = seq & 0xFF
-        rec["ack"] = ack & 0xFF
+        buf = self.buffer
+        buf[0] = seq & 0xFF
+        buf[1] = ack & 0xFF
         return self.view
 
     def to_bytes(self, seq: int, ack: int) -> bytes:
@@ -152,34 +160,30 @@ class Packet:
 
         The packet is left unchanged when ``data`` is rejected, so the last good one survives.
         """
-        size = self.LAYOUT.itemsize
-        n = len(data)
-        if n != size:
+        err = _check_and_copy(data, self.bytes_array, self._check_spec)
+        if err:
+            self._reject(err, data)
+        return self
+
+    def _reject(self, err: int, data: bytes | bytearray | memoryview) -> None:
+        """Raise the ``PacketError`` saying why ``_check_and_copy`` returned ``err``."""
+        if err == _BAD_SIZE:
             raise PacketError(
-                f"{self.NAME} packet has {n} bytes, expected exactly {size} "
-                f"(protocol version {PROTOCOL_VERSION})"
+                f"{self.NAME} packet has {len(data)} bytes, expected exactly "
+                f"{self.LAYOUT.itemsize} (protocol version {PROTOCOL_VERSION})"
             )
-        stage = self._stage
-        stage[:] = data
-        version = stage[2]
-        if version != PROTOCOL_VERSION:
+        if err == _BAD_VERSION:
             raise PacketError(
-                f"{self.NAME} packet has protocol version {version}, this end speaks "
+                f"{self.NAME} packet has protocol version {data[2]}, this end speaks "
                 f"{PROTOCOL_VERSION}: rebuild both ends from the same runtime.cassie_packets"
             )
-        kind = stage[3]
-        if kind != self.KIND:
+        if err == _BAD_KIND:
             raise PacketError(
-                f"{self.NAME} packet has kind byte {kind:#04x}, expected {self.KIND:#04x} "
+                f"{self.NAME} packet has kind byte {data[3]:#04x}, expected {self.KIND:#04x} "
                 f"({chr(self.KIND)!r}): is the peer sending to the wrong port?"
             )
-        for view, ok in zip(self._stage_views, self._finite, strict=True):
-            np.isfinite(view, out=ok)
-            if not ok.all():
-                raise PacketError(f"{self.NAME} packet field {self._non_finite(stage)!r} "
-                                  "holds NaN or inf")
-        self.buffer[:] = stage
-        return self
+        raise PacketError(f"{self.NAME} packet field {self._non_finite(data)!r} "
+                          "holds NaN or inf")
 
     def _non_finite(self, data: bytes | bytearray | memoryview) -> str:
         """Name of the first float field of ``data`` holding NaN or inf (error path only)."""
@@ -188,6 +192,34 @@ class Packet:
             if self.LAYOUT[name].base.kind == "f" and not np.isfinite(rec[name]).all():
                 return name
         return "?"
+
+
+_BAD_SIZE, _BAD_VERSION, _BAD_KIND, _NON_FINITE = 1, 2, 3, 4
+
+
+@numba.njit(cache=True, nogil=True)
+def _check_and_copy(data: Any, out: np.ndarray, spec: np.ndarray) -> int:  # pragma: no cover
+    """Validate datagram ``data`` as the packet ``spec`` describes and copy it into ``out``.
+
+    Returns 0 (copied), or why it was rejected (``out`` untouched): ``_BAD_SIZE`` (not exactly
+    ``out``'s size), ``_BAD_VERSION``, ``_BAD_KIND``, or ``_NON_FINITE`` (a NaN or inf in the
+    float64 at one of the byte offsets ``spec[2:]``: all 11 exponent bits set, read from the
+    little-endian bytes, which is what ``np.isfinite`` tests).
+    """
+    n = out.shape[0]
+    if len(data) != n:
+        return _BAD_SIZE
+    if data[2] != spec[0]:
+        return _BAD_VERSION
+    if data[3] != spec[1]:
+        return _BAD_KIND
+    for j in range(2, spec.shape[0]):
+        o = spec[j]
+        if (data[o + 7] & 0x7F) == 0x7F and (data[o + 6] & 0xF0) == 0xF0:
+            return _NON_FINITE
+    for i in range(n):
+        out[i] = data[i]
+    return 0
 
 
 def _float_spans(layout: np.dtype) -> list[tuple[int, int, str]]:
@@ -204,6 +236,14 @@ def _float_spans(layout: np.dtype) -> list[tuple[int, int, str]]:
         else:
             spans.append((offset, count, name))
     return spans
+
+
+def float_block(layout: np.dtype) -> tuple[int, int]:
+    """(byte offset, count) of the one run of adjacent float64 fields of ``layout``."""
+    spans = _float_spans(layout)
+    if len(spans) != 1:
+        raise ValueError(f"the layout has {len(spans)} runs of float fields, expected one")
+    return spans[0][0], spans[0][1]
 
 
 class OutputPacket(Packet):
@@ -275,7 +315,8 @@ class InputPacket(Packet):
 
     @property
     def flags(self) -> int:
-        return int(self._flags[0])
+        b, o = self.buffer, _FLAGS_AT  # uint32, little-endian (bytearray reads: no numpy)
+        return b[o] | b[o + 1] << 8 | b[o + 2] << 16 | b[o + 3] << 24
 
     @flags.setter
     def flags(self, value: int) -> None:
