@@ -28,6 +28,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+from time import perf_counter
 from typing import Any, Literal
 
 import yaml
@@ -385,44 +386,51 @@ class SimNode(Node):
             sys.setswitchinterval(self.settings.gil_switch_interval_s)
         # the first state goes out before any command: in lockstep it is what gets answered
         ctx.publish("robot_output", bytes(self.tpc.encode_state()))
-        self._publish_extras(ctx)
+        self._publish_extras(ctx, self.core.utime)
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:
-        t0 = time.perf_counter()
-        tpc = self.tpc
+        t0 = perf_counter()
+        tpc, core = self.tpc, self.core
         skipped = 0
         if self.trigger_role is None:
-            while (data := inbox.pop("command")) is not None:
-                tpc.take(data)
+            if inbox.is_fresh("command"):  # nothing came: nothing to pop
+                while (data := inbox.pop("command")) is not None:
+                    tpc.take(data)
             now = ctx.now_utime  # the scheduled time: a jump of several periods = skipped slots
-            if self._prev_utime is not None and self._period_us > 0:
-                skipped = max(0, (now - self._prev_utime) // self._period_us - 1)
+            prev = self._prev_utime
             self._prev_utime = now
             steps = self.steps_per_tick
-            if skipped and self.wall_clock:
-                # the loop missed slots (a stall): step through them with the same torque, as
-                # the real robot's physics would have gone on; beyond the cap they are lost
-                extra = min(skipped, self._max_catch_up)
-                self.catch_up_steps += extra * steps
-                self.lost_slots += skipped - extra
-                steps += extra * steps
+            if prev is not None and self._period_us > 0:
+                skipped = max(0, (now - prev) // self._period_us - 1)
+                if skipped and self.wall_clock:
+                    # the loop missed slots (a stall): step through them with the same torque,
+                    # as the real robot's physics would have gone on; beyond the cap they are
+                    # lost
+                    extra = min(skipped, self._max_catch_up)
+                    self.catch_up_steps += extra * steps
+                    self.lost_slots += skipped - extra
+                    steps += extra * steps
             out = tpc.realtime_cycle(None, steps)
+            t = core.d.time
+            utime = round(t * 1e6)  # core.utime
         else:
             out = tpc.lockstep_cycle(inbox.trigger())
-        if self.trigger_role is not None:
             # driven by raw command bytes, which carry no sim time: the sim is the clock, so
             # its outputs (and their decimation) run on physics time
-            ctx.now_utime = self.core.utime
+            t = core.d.time
+            utime = ctx.now_utime = round(t * 1e6)
         if out is not None:
-            ctx.publish("robot_output", bytes(out))
-        self.core.prepare()  # the next step's first half, once the state is on its way
-        self._publish_extras(ctx)
-        if self.core.utime >= self._next_judge_us:
-            self._next_judge_us = self.core.utime + JUDGE_PERIOD_US
+            # the packet's own buffer (``out`` views it): the live runner sends it at once and
+            # the harness copies it, so no copy is made here
+            ctx.publish("robot_output", tpc.out.buffer)
+        core.prepare()  # the next step's first half, once the state is on its way
+        self._publish_extras(ctx, utime)
+        if utime >= self._next_judge_us:
+            self._next_judge_us = utime + JUDGE_PERIOD_US
             self._judge()
-        task = time.perf_counter() - t0
         if self.wall_clock:
-            tpc.stats.record(task, self.core.time, skipped)
+            end = perf_counter()  # CLOCK_MONOTONIC, as time.monotonic
+            tpc.stats.record(end - t0, t, skipped, end)
 
     def _judge(self) -> None:
         """The truth about the robot, for status and health: distance walked since the holder
@@ -440,9 +448,9 @@ class SimNode(Node):
                 log.warning("the robot fell at t=%.3f s: pelvis %.2f m over the ground",
                             self.core.time, self._pelvis_z)
 
-    def _publish_extras(self, ctx: Context) -> None:
+    def _publish_extras(self, ctx: Context, now: int) -> None:
+        """Ground truth, footholds and depth frames, when due at sim time ``now`` (us)."""
         core = self.core
-        now = core.utime
         if self._footholds is not None and now >= self._next_fh_us:
             self._next_fh_us = now + FOOTHOLD_PERIOD_US
             self._footholds.header.utime = now

@@ -10,6 +10,11 @@
 
 Nothing here reads the wall clock except ``LoopStats``, which only reports; so the state of two
 runs fed the same commands is bit-identical.
+
+The 2 kHz path is built to cost little more than MuJoCo's own step: a command is taken in one
+compiled call (torques, and the controls they give, written in place), the whole state packet
+is filled in another (``_fill_output``), and per physics step only the watchdog test runs in
+Python around ``mj_step1``/``mj_step2``.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import mujoco
+import numba
 import numpy as np
 
 from runtime.cassie_packets import (
@@ -32,6 +38,7 @@ from runtime.cassie_packets import (
     LinkCounter,
     OutputPacket,
     PacketError,
+    float_block,
 )
 from sim.model import CassieIndices, build_model, standing_pose
 from sim.terrain import Terrain
@@ -90,13 +97,19 @@ class SimCore:
         self.idx = CassieIndices.of(model)
         self.dt = float(model.opt.timestep)
         self.q_start = standing_pose(model, self.cfg.pelvis_height, start_z, self.cfg.foot_y)
-        self.torque_cmd = np.zeros(len(self.idx.gear))  # newest command, N m at the joint
-        d = self.d  # views made once: the 2 kHz path only copies into existing arrays
-        self._v_quat = d.qpos[3:7]
-        self._v_gyro = d.qvel[3:6]
-        self._v_accel = d.sensordata[self.idx.accel_adr:self.idx.accel_adr + 3]
+        #: newest command, N m at the joint (set it with ``command``: the controls follow it)
+        self.torque_cmd = np.zeros(len(self.idx.gear))
+        d = self.d  # views made once: the 2 kHz path only reads and writes existing arrays
+        self._qpos, self._qvel, self._ctrl = d.qpos, d.qvel, d.ctrl
+        self._sensordata, self._actuator_force = d.sensordata, d.actuator_force
+        self._gear = np.ascontiguousarray(self.idx.gear, dtype=np.float64)
+        self._table = _output_table(self.idx)
+        #: sim time after the last command at which the watchdog zeroes the torques
+        self._watchdog_after_s = self.cfg.watchdog_s - 0.25 * self.dt
+        self._ctrl_live = False  # d.ctrl holds torque_cmd / gear (else zeros)
         self._prepared = False
         self.reset()
+        _warm_kernels()
 
     # -- state -----------------------------------------------------------------------------
     def reset(self, qpos: np.ndarray | None = None) -> None:
@@ -111,6 +124,7 @@ class SimCore:
             self.d.eq_active[self.idx.holder_eq] = self.cfg.holder.enabled
         mujoco.mj_forward(self.m, self.d)
         self._prepared = True  # mj_forward did what mj_step1 would
+        self._ctrl_live = False  # mj_resetData zeroed d.ctrl
         self.torque_cmd[:] = 0.0
         self.last_command_time: float | None = None
         self.holder_engaged = self.cfg.holder.enabled
@@ -134,18 +148,22 @@ class SimCore:
     def watchdog_tripped(self) -> bool:
         """True when the torques applied now are zeros because commands stopped (or never came)."""
         last = self.last_command_time
-        return last is None or self.d.time - last >= self.cfg.watchdog_s - 0.25 * self.dt
+        return last is None or self.d.time - last >= self._watchdog_after_s
 
     # -- inputs ----------------------------------------------------------------------------
     def command(self, torque: np.ndarray, flags: int = 0) -> None:
-        """A new joint-side torque command (N m), received at the current sim time."""
-        self.torque_cmd[:] = torque
+        """A new joint-side torque command (N m), received at the current sim time: the
+        newest torques, and the controls they give (``torque / gear``; MuJoCo clamps them)."""
+        if type(torque) is not np.ndarray:
+            torque = np.asarray(torque, dtype=np.float64)
+        nonzero = _set_command(torque, self.torque_cmd, self._gear, self._ctrl)
+        self._ctrl_live = True
         self.last_command_time = float(self.d.time)
         self.commands += 1
         if self.holder_engaged:
             rel = self.cfg.holder.release_on
             if flags & FLAG_RELEASE_HOLDER or rel == "first_command" or (
-                    rel == "first_nonzero_command" and bool(torque.any())):
+                    rel == "first_nonzero_command" and nonzero):
                 self.release_holder()
 
     def release_holder(self) -> None:
@@ -161,23 +179,30 @@ class SimCore:
     # -- stepping --------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:
         """Advance ``n`` physics steps with the newest torque (zeros once the watchdog trips)."""
-        d = self.d
+        d, m = self.d, self.m
         push = self.cfg.push
         if push is not None and self.release_time is not None:
             self._apply_push(push)
         for _ in range(n):
-            self.torque_zeroed = self.watchdog_tripped
-            if self.torque_zeroed:
+            last = self.last_command_time  # the watchdog (``watchdog_tripped``), inline
+            zeroed = last is None or d.time - last >= self._watchdog_after_s
+            self.torque_zeroed = zeroed
+            # d.ctrl is torque_cmd / gear since the last command (MuJoCo reads it and never
+            # writes it), zeros while the watchdog holds: rewritten only when that changes
+            if zeroed:
                 self.zero_torque_steps += 1
-                d.ctrl[:] = 0.0
-            else:
-                np.divide(self.torque_cmd, self.idx.gear, out=d.ctrl)  # MuJoCo clamps ctrl
+                if self._ctrl_live:
+                    self._ctrl[:] = 0.0
+                    self._ctrl_live = False
+            elif not self._ctrl_live:
+                np.divide(self.torque_cmd, self._gear, out=self._ctrl)
+                self._ctrl_live = True
             # mj_step = mj_step1 (positions, velocities, collisions) + mj_step2 (actuation,
             # acceleration, integration), bit for bit with the Euler integrator; step1 for the
             # next step may have run already (``prepare``), after the state went out
             if not self._prepared:
-                mujoco.mj_step1(self.m, d)
-            mujoco.mj_step2(self.m, d)
+                mujoco.mj_step1(m, d)
+            mujoco.mj_step2(m, d)
             self._prepared = False
             self.steps += 1
 
@@ -202,18 +227,15 @@ class SimCore:
             self.pushing = on
 
     # -- outputs ---------------------------------------------------------------------------
-    def fill_output(self, pkt: OutputPacket) -> None:
-        """Write the robot-output fields (IMU, motors, passive joints) of the current state."""
-        d, i = self.d, self.idx
-        pkt.utime = self.utime
-        pkt.imu_quat[:] = self._v_quat  # the IMU site is aligned with the pelvis
-        pkt.imu_gyro[:] = self._v_gyro  # free-joint angular velocity is in the body frame
-        pkt.imu_accel[:] = self._v_accel
-        d.qpos.take(i.motor_qpos, out=pkt.motor_pos)
-        d.qvel.take(i.motor_dof, out=pkt.motor_vel)
-        np.multiply(d.actuator_force, i.gear, out=pkt.motor_torque)  # clamped ctrl, last step
-        d.qpos.take(i.joint_qpos, out=pkt.joint_pos)
-        d.qvel.take(i.joint_dof, out=pkt.joint_vel)
+    def fill_output(self, pkt: OutputPacket, status: int, seq: int, ack: int,
+                    task_time_s: float | None = None, overruns: int = 0) -> None:
+        """Write the whole robot-output packet of the current state in one compiled call: the
+        fields the physics gives (utime, IMU, motors, passive joints; ``_output_table``), and
+        the target PC's ``status``, header (``seq``, ``ack``) and, when ``task_time_s`` is
+        given, its task time and ``overruns`` (left as they are otherwise)."""
+        _fill_output(self._qpos, self._qvel, self._sensordata, self._actuator_force, self._gear,
+                     self._table, pkt.floats, pkt.bytes_array, self.d.time,
+                     -1.0 if task_time_s is None else task_time_s, overruns, status, seq, ack)
 
     def foot_contacts(self) -> tuple[bool, bool]:
         """Whether each foot's collision geom touches anything now."""
@@ -259,6 +281,8 @@ class LoopStats:
 
     def record(self, task_s: float, sim_time: float, skipped: int = 0,
                wall: float | None = None) -> None:
+        """One tick: its task time, the sim time after it, the slots skipped before it, and
+        the wall clock now (``time.monotonic()`` when not given)."""
         self.ticks += 1
         self.last_task_s = task_s
         if task_s > self.max_task_s:
@@ -299,6 +323,7 @@ class TargetPC:
         self.link = LinkCounter()
         self.inp = InputPacket()
         self.out = OutputPacket()
+        self._realtime = mode == "realtime"
         self.stats = LoopStats(core.dt * (steps_per_command if mode == "lockstep" else 1))
         self.timeouts = 0  # lockstep: no answer within the timeout
         self.unanswered = 0  # lockstep: commands whose ack is not the newest state
@@ -307,17 +332,22 @@ class TargetPC:
 
     def receive(self, data: bytes | bytearray | memoryview) -> bool:
         """Decode and account one datagram; False (counted, never raised) if malformed."""
+        inp = self.inp
         try:
-            self.inp.decode(data)
+            inp.decode(data)
         except PacketError as exc:
-            self.link.on_error()
-            self.last_error = str(exc)
-            if self._errors_logged < 10 or self.link.malformed % 1000 == 0:
-                self._errors_logged += 1
-                log.warning("rejected packet #%d: %s", self.link.malformed, exc)
+            self._rejected(exc)
             return False
-        self.link.on_receive(self.inp.seq, self.inp.ack)
+        buf = inp.buffer
+        self.link.on_receive(buf[0], buf[1])  # seq, ack
         return True
+
+    def _rejected(self, exc: PacketError) -> None:
+        self.link.on_error()
+        self.last_error = str(exc)
+        if self._errors_logged < 10 or self.link.malformed % 1000 == 0:
+            self._errors_logged += 1
+            log.warning("rejected packet #%d: %s", self.link.malformed, exc)
 
     def status_bits(self) -> int:
         c = self.core
@@ -333,20 +363,24 @@ class TargetPC:
         return bits
 
     def encode_state(self) -> memoryview:
-        """The robot-output datagram of the current state, with the next own seq."""
-        self.core.fill_output(self.out)
-        if self.mode == "realtime":  # wall-clock figures would make lockstep runs differ
-            self.out.task_time_s = self.stats.last_task_s
-            self.out.overruns = self.stats.overruns
-        self.out.status = self.status_bits()
-        return self.out.encode(self.link.next_seq(), self.link.last_peer_seq)
+        """The robot-output datagram of the current state, with the next own seq (a view of
+        ``self.out.buffer``, which holds the same bytes)."""
+        link, stats = self.link, self.stats
+        seq = link.next_seq()
+        if self._realtime:  # wall-clock figures would make lockstep runs differ
+            self.core.fill_output(self.out, self.status_bits(), seq, link.last_peer_seq,
+                                  stats.last_task_s, stats.overruns)
+        else:
+            self.core.fill_output(self.out, self.status_bits(), seq, link.last_peer_seq)
+        return self.out.view
 
     def take(self, data: bytes | bytearray | memoryview) -> bool:
         """One received torque datagram: decoded, counted, and its torques made the newest
         command (False when malformed: counted, never raised)."""
         if not self.receive(data):
             return False
-        self.core.command(self.inp.torque, self.inp.flags)
+        inp = self.inp
+        self.core.command(inp.torque, inp.flags)
         return True
 
     def realtime_cycle(self, data: bytes | bytearray | memoryview | None, steps: int = 1
@@ -392,6 +426,116 @@ class TargetPC:
         if self.stats.slower_than_realtime:
             s += " SLOWER-THAN-REALTIME"
         return s
+
+
+# -- compiled pieces of the 2 kHz path ---------------------------------------------------------
+
+# what one row of ``_output_table`` copies: (source, index in it, destination)
+_QPOS, _QVEL, _SENSOR, _TORQUE, _TASK, _UTIME, _OVERRUNS, _STATUS = range(8)
+
+
+def _output_table(idx: CassieIndices) -> np.ndarray:
+    """How the output packet is filled from MjData, one row per value: (source, index,
+    destination). Floats go to ``OutputPacket.floats[destination]`` (``_QPOS``, ``_QVEL``,
+    ``_SENSOR``: copied; ``_TORQUE``: ``actuator_force[i] * gear[i]``, the joint-side torque of
+    the clamped controls of the last step; ``_TASK``: the task time), integers to byte offset
+    ``destination`` (``_UTIME``: int64 ``round(time * 1e6)``; ``_OVERRUNS``, ``_STATUS``:
+    uint32)."""
+    a = idx.accel_adr
+    src: dict[str, list[tuple[int, int]]] = {
+        "imu_quat": [(_QPOS, i) for i in range(3, 7)],  # the IMU site is aligned with the pelvis
+        "imu_gyro": [(_QVEL, i) for i in range(3, 6)],  # free-joint angular velocity: body frame
+        "imu_accel": [(_SENSOR, i) for i in range(a, a + 3)],
+        "motor_pos": [(_QPOS, int(i)) for i in idx.motor_qpos],
+        "motor_vel": [(_QVEL, int(i)) for i in idx.motor_dof],
+        "motor_torque": [(_TORQUE, k) for k in range(len(idx.gear))],
+        "joint_pos": [(_QPOS, int(i)) for i in idx.joint_qpos],
+        "joint_vel": [(_QVEL, int(i)) for i in idx.joint_dof],
+        "task_time_s": [(_TASK, 0)],
+    }
+    layout = OutputPacket.LAYOUT
+    base = float_block(layout)[0]
+    rows = []
+    for name, values in src.items():
+        sub, offset = layout.fields[name][:2]
+        if sub.itemsize != 8 * len(values):
+            raise ValueError(f"output field {name}: {len(values)} values for {sub}")
+        rows += [(s, i, (offset - base) // 8 + k) for k, (s, i) in enumerate(values)]
+    rows += [(_UTIME, 0, layout.fields["utime"][1]),
+             (_OVERRUNS, 0, layout.fields["overruns"][1]),
+             (_STATUS, 0, layout.fields["status"][1])]
+    return np.array(rows, dtype=np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _put_uint(out: np.ndarray, offset: int, value: int, size: int) -> None:  # pragma: no cover
+    """Write ``value`` as a ``size``-byte little-endian unsigned integer at ``offset``."""
+    for k in range(size):
+        out[offset + k] = (value >> (8 * k)) & 0xFF
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_output(qpos: np.ndarray, qvel: np.ndarray, sensordata: np.ndarray,
+                 actuator_force: np.ndarray, gear: np.ndarray, table: np.ndarray,
+                 floats: np.ndarray, out: np.ndarray, time_s: float, task_time_s: float,
+                 overruns: int, status: int, seq: int, ack: int) -> None:  # pragma: no cover
+    """The whole output packet (``SimCore.fill_output``): ``table`` rows into ``floats`` (the
+    packet's float64 block) and ``out`` (its bytes); the task time only if ``>= 0``."""
+    for r in range(table.shape[0]):
+        s, i, o = table[r, 0], table[r, 1], table[r, 2]
+        if s == _QPOS:
+            floats[o] = qpos[i]
+        elif s == _QVEL:
+            floats[o] = qvel[i]
+        elif s == _SENSOR:
+            floats[o] = sensordata[i]
+        elif s == _TORQUE:
+            floats[o] = actuator_force[i] * gear[i]
+        elif s == _TASK:
+            if task_time_s >= 0.0:
+                floats[o] = task_time_s
+        elif s == _UTIME:
+            _put_uint(out, o, np.int64(np.rint(time_s * 1e6)), 8)
+        elif s == _OVERRUNS:
+            _put_uint(out, o, overruns & 0xFFFFFFFF, 4)
+        else:
+            _put_uint(out, o, status, 4)
+    out[0] = seq & 0xFF
+    out[1] = ack & 0xFF
+
+
+@numba.njit(cache=True, nogil=True)
+def _set_command(torque: np.ndarray, torque_cmd: np.ndarray, gear: np.ndarray,
+                 ctrl: np.ndarray) -> bool:  # pragma: no cover
+    """``torque_cmd[:] = torque``, ``ctrl[:] = torque / gear``; whether any torque is nonzero."""
+    if torque.shape[0] != torque_cmd.shape[0]:
+        raise ValueError("a torque command needs one torque per motor")
+    nonzero = False
+    for k in range(torque_cmd.shape[0]):
+        t = torque[k]
+        torque_cmd[k] = t
+        ctrl[k] = t / gear[k]
+        if t != 0.0:
+            nonzero = True
+    return nonzero
+
+
+_warmed = False
+
+
+def _warm_kernels() -> None:
+    """Compile (or load from numba's cache) the kernels for the arrays the 2 kHz path passes,
+    so the first tick does not."""
+    global _warmed
+    if _warmed:
+        return
+    out, inp = OutputPacket(), InputPacket()
+    f, g = np.zeros(10), np.ones(10)
+    _set_command(inp.torque, f, g, np.zeros(10))  # a received packet's torques
+    _set_command(f, f.copy(), g, np.zeros(10))  # an array's
+    _fill_output(f, f, f, f, g, np.zeros((0, 3), dtype=np.int64), out.floats,
+                 out.bytes_array, 0.0, -1.0, 0, 0, 0, 0)
+    _warmed = True
 
 
 def make_core(terrain: Terrain | None = None, config: SimConfig | None = None) -> SimCore:

@@ -37,7 +37,9 @@ class Driver:
 
     def publish(self, role: str, msg: Any) -> None:
         assert role in self.node.outputs, role
-        self.published[role].append(msg if isinstance(msg, bytes) else msg.encode())
+        # raw packets are copied (the sim publishes its reused packet buffer), LCM encoded
+        self.published[role].append(bytes(msg) if isinstance(msg, (bytes, bytearray))
+                                    else msg.encode())
 
     # Inbox
     def latest(self, role: str) -> Any | None:
