@@ -18,10 +18,12 @@ commands, and the target PC releases its start-up pelvis holder on the first of 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+import numba
 import numpy as np
 
 from runtime.cassie_packets import NUM_MOTORS
@@ -109,8 +111,16 @@ def _per_kind(file: str, key: str, v: Any, positive: bool) -> tuple[float, ...] 
     return tuple(out) * 2
 
 
+#: what ``_torques`` puts out: the newest command, zeros, or joint damping
+_OUT_COMMAND, _OUT_ZERO, _OUT_DAMPING = 0, 1, 2
+
+
 class TorqueBridge:
-    """Keeps the newest valid command and turns each robot state into the torques to send."""
+    """Keeps the newest valid command and turns each robot state into the torques to send.
+
+    The per-command work is two compiled calls: ``on_command`` copies and checks the torques
+    (``_take_command``), ``step`` picks the watchdog's case in a few integer comparisons and
+    writes the clamped torques (``_torques``)."""
 
     def __init__(self, params: BridgeParams | None = None) -> None:
         self.params = p = params or BridgeParams()
@@ -131,71 +141,147 @@ class TorqueBridge:
         self.nan_rejects = 0
         self.last_reason = "no command yet"
         self._tripped = True  # no command yet counts as tripped, but not as a trip
+        self._no_out = np.zeros(0)
+        self._nan_vel = np.full(NUM_MOTORS, np.nan)
+        _warm_kernels(self)
 
     def on_command(self, torque: Any, utime: int) -> bool:
         """A new command (joint-side N m, motor order) computed from the state at ``utime``.
         Returns False (and counts it) when rejected."""
-        t = np.asarray(torque, dtype=float)
-        if t.shape != (NUM_MOTORS,):
-            self.nan_rejects += 1
-            self.rejected_pending = True
-            self.last_reason = f"command has {t.size} torques, expected {NUM_MOTORS}"
-            return False
-        self.commanded[:] = t
-        if not np.isfinite(t).all():
+        ok = None
+        if type(torque) is tuple and len(torque) == NUM_MOTORS:
+            try:  # a decoded message's torques, a tuple of floats: straight into the kernel
+                ok = _take_command(torque, self.commanded, self.command)
+            except numba.core.errors.TypingError:  # not all floats
+                pass
+        if ok is None:
+            t = np.asarray(torque, dtype=float)
+            if t.shape != (NUM_MOTORS,):
+                self.nan_rejects += 1
+                self.rejected_pending = True
+                self.last_reason = f"command has {t.size} torques, expected {NUM_MOTORS}"
+                return False
+            ok = _take_command(t, self.commanded, self.command)
+        if not ok:
             self.nan_rejects += 1
             self.rejected_pending = True
             self.last_reason = "command holds NaN or inf"
             return False
-        self.command[:] = t
         self.command_utime = int(utime)
         self.rejected_pending = False
         return True
 
-    def step(self, now_utime: int, motor_vel: np.ndarray) -> np.ndarray:
-        """Torques to send for the robot state at ``now_utime`` (motor velocities for the
-        damping fallback); updates ``source``, ``age_ms`` and the counters."""
+    def step(self, now_utime: int,
+             motor_vel: np.ndarray | Callable[[], np.ndarray],
+             out: np.ndarray | None = None) -> np.ndarray:
+        """Torques to send for the robot state at ``now_utime``; updates ``source``,
+        ``age_ms`` and the counters. ``motor_vel``: the motor velocities for the damping
+        fallback, or a function giving them (called only when the fallback needs them).
+        ``out``: also write the torques there (the packet's field)."""
         p = self.params
         cu = self.command_utime
         age_us = None if cu is None else now_utime - cu
         self.age_ms = float("inf") if age_us is None else age_us / 1000.0
         fresh = age_us is not None and -self.watchdog_us < age_us < self.watchdog_us
         if self.rejected_pending:
-            self._fallback(motor_vel)
+            kind = self._fallback_kind()
             self.source = SOURCE_REJECTED
             self._tripped = True
         elif fresh:
-            self.torque[:] = self.command
+            kind = _OUT_COMMAND
             self.source = SOURCE_COMMAND
             self._tripped = False
             self.last_reason = "ok"
         elif cu is None:
             # no controller yet: zero torque, whatever the fallback. Damping torques here would
             # be non-zero commands, and the target PC releases its start-up holder on those.
-            self.torque[:] = 0.0
+            kind = _OUT_ZERO
             self.source = SOURCE_WATCHDOG_ZERO
         else:
             if not self._tripped:
                 self.watchdog_trips += 1
                 self.last_reason = f"no fresh command for {p.watchdog_s * 1e3:.0f} ms"
             self._tripped = True
-            self._fallback(motor_vel)
+            kind = self._fallback_kind()
             self.source = (SOURCE_WATCHDOG_ZERO if p.fallback == "zero"
                            else SOURCE_WATCHDOG_DAMPING)
-        over = np.abs(self.torque) > self.limit
-        if over.any():
-            self.clamp_count += int(over.sum())
-            np.clip(self.torque, -self.limit, self.limit, out=self.torque)
+        if kind == _OUT_DAMPING:
+            mv = motor_vel() if callable(motor_vel) else motor_vel
+            mv = np.ascontiguousarray(np.broadcast_to(np.asarray(mv, dtype=float),
+                                                      (NUM_MOTORS,)))
+        else:
+            mv = self._nan_vel  # not read
+        self.clamp_count += _torques(kind, self.command, self.kd, mv, self.limit, self.torque,
+                                     self._no_out if out is None else out)
         return self.torque
 
-    def _fallback(self, motor_vel: np.ndarray) -> None:
-        if self.params.fallback == "damping" and np.isfinite(motor_vel).all():
-            np.multiply(self.kd, motor_vel, out=self.torque)
-            np.negative(self.torque, out=self.torque)
-        else:
-            self.torque[:] = 0.0
+    def _fallback_kind(self) -> int:
+        return _OUT_DAMPING if self.params.fallback == "damping" else _OUT_ZERO
 
     def status(self) -> str:
         """One line: active source and counters."""
         return (f"{SOURCE_NAMES[self.source]}; trips {self.watchdog_trips} clamps "
                 f"{self.clamp_count} rejects {self.nan_rejects}; {self.last_reason}")
+
+
+@numba.njit(cache=True, nogil=True)
+def _take_command(torque: Any, commanded: np.ndarray,
+                  command: np.ndarray) -> bool:  # pragma: no cover
+    """``commanded[:] = torque``; when every torque is finite also ``command[:] = torque``
+    and True, else False (``command`` untouched)."""
+    ok = True
+    for i in range(commanded.shape[0]):
+        t = torque[i]
+        commanded[i] = t
+        if not np.isfinite(t):
+            ok = False
+    if ok:
+        for i in range(command.shape[0]):
+            command[i] = commanded[i]
+    return ok
+
+
+@numba.njit(cache=True, nogil=True)
+def _torques(kind: int, command: np.ndarray, kd: np.ndarray, motor_vel: np.ndarray,
+             limit: np.ndarray, torque: np.ndarray, out: np.ndarray) -> int:  # pragma: no cover
+    """``torque`` = the command (``_OUT_COMMAND``), zeros (``_OUT_ZERO``) or joint damping
+    ``-(kd * motor_vel)`` (``_OUT_DAMPING``; zeros when a velocity is not finite), each then
+    clipped to +-``limit``; copied into ``out`` unless it is empty. Returns how many torques
+    were clipped."""
+    n = torque.shape[0]
+    if kind == _OUT_DAMPING:
+        for i in range(n):
+            if not np.isfinite(motor_vel[i]):
+                kind = _OUT_ZERO
+    clipped = 0
+    for i in range(n):
+        if kind == _OUT_COMMAND:
+            t = command[i]
+        elif kind == _OUT_DAMPING:
+            t = -(kd[i] * motor_vel[i])
+        else:
+            t = 0.0
+        lim = limit[i]
+        if t > lim:
+            t = lim
+            clipped += 1
+        elif t < -lim:
+            t = -lim
+            clipped += 1
+        torque[i] = t
+    if out.shape[0]:
+        for i in range(n):
+            out[i] = torque[i]
+    return clipped
+
+
+def _warm_kernels(b: TorqueBridge) -> None:
+    """Compile (or load from numba's cache) the kernels for the arguments the node passes
+    (a decoded message's tuple, arrays, a packet's field), before the first command."""
+    from runtime.cassie_packets import InputPacket
+
+    scratch = np.zeros(NUM_MOTORS)
+    _take_command((0.0,) * NUM_MOTORS, scratch, scratch.copy())
+    _take_command(scratch, scratch.copy(), scratch.copy())
+    for out in (b._no_out, InputPacket().torque):
+        _torques(_OUT_ZERO, scratch, b.kd, b._nan_vel, b.limit, scratch.copy(), out)

@@ -92,6 +92,8 @@ class TorqueBridgeNode(Node):
         self._dofs: list[int] = []
         self._dof_max = -1
         self._mv = np.zeros(NUM_MOTORS)
+        self._state: robot_state_t | None = None  # the state being answered
+        self._flags = -1  # the flags the packet holds
         self._msg = applied_input_t()
         self._msg.num_motors = NUM_MOTORS
 
@@ -134,26 +136,36 @@ class TorqueBridgeNode(Node):
                     b.on_command(cmd.torque, cmd.header.utime)
         self._send(ctx, b, int(state.header.utime), state, packet_seq_of(state))
 
-    def _send(self, ctx: Context, b: TorqueBridge, utime: int, state: robot_state_t | None,
-              ack: int) -> None:
-        """The torques for the robot at ``utime`` (watchdog, clamps), as one packet."""
-        v = state.v if state is not None else ()
+    def _motor_velocities(self) -> np.ndarray:
+        """The motor velocities of the state being answered (for the damping fallback only:
+        read when the bridge falls back, not per command); NaN without a well-formed state,
+        which makes the fallback zero torque."""
+        v = self._state.v if self._state is not None else ()
         if self._dofs and len(v) > self._dof_max:
             self._mv[:] = [v[i] for i in self._dofs]
         else:
-            self._mv[:] = np.nan  # no or a malformed state: the damping fallback gives zero
+            self._mv[:] = np.nan
+        return self._mv
+
+    def _send(self, ctx: Context, b: TorqueBridge, utime: int, state: robot_state_t | None,
+              ack: int) -> None:
+        """The torques for the robot at ``utime`` (watchdog, clamps), as one packet."""
+        self._state = state
         trips, rejects = b.watchdog_trips, b.nan_rejects
-        tau = b.step(utime, self._mv)
+        pkt = self.pkt
+        tau = b.step(utime, self._motor_velocities, out=pkt.torque)  # into the packet too
         if b.watchdog_trips != trips:
             log.warning("torque bridge watchdog tripped (#%d) at t=%.4f s: %s", b.watchdog_trips,
                         utime * 1e-6, b.status())
         if b.nan_rejects != rejects and (b.nan_rejects <= 10 or b.nan_rejects % 1000 == 0):
             log.warning("torque command rejected (#%d): %s", b.nan_rejects, b.last_reason)
-        pkt = self.pkt
-        pkt.torque[:] = tau
         release = self.params.release_holder and b.source == SOURCE_COMMAND
-        pkt.flags = FLAG_RELEASE_HOLDER if release else 0
-        ctx.publish("robot_input", pkt.to_bytes(self.link.next_seq(), ack))
+        flags = FLAG_RELEASE_HOLDER if release else 0
+        if flags != self._flags:
+            pkt.flags = self._flags = flags
+        pkt.encode(self.link.next_seq(), ack)
+        # the packet's own buffer: the live runner sends it at once, the harness copies it
+        ctx.publish("robot_input", pkt.buffer)
         if not ctx.due("applied_input"):  # decimated (processes.torque_bridge.output_rate_hz)
             return
         m = self._msg
