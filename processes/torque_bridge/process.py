@@ -94,6 +94,7 @@ class TorqueBridgeNode(Node):
         self._mv = np.zeros(NUM_MOTORS)
         self._state: robot_state_t | None = None  # the state being answered
         self._flags = -1  # the flags the packet holds
+        self._release_holder = self.params.release_holder
         self._msg = applied_input_t()
         self._msg.num_motors = NUM_MOTORS
 
@@ -106,16 +107,18 @@ class TorqueBridgeNode(Node):
         if self.answer_on == "command":
             cmd = inbox.trigger()
             state = inbox.latest("state")
+            cmd_utime = 0
             if cmd is not None:
-                b.on_command(cmd.torque, cmd.header.utime)
+                cmd_utime = int(cmd.header.utime)
+                b.on_command(cmd.torque, cmd_utime)
             elif state is None or int(state.header.utime) <= self._answered_utime:
                 return  # a watchdog tick with no new state: nothing to answer
             if state is None:  # a command before any state: answer at its own time
-                self._send(ctx, b, int(cmd.header.utime), None, 0)
+                self._send(ctx, b, cmd_utime, None, 0)
                 return
-            utime = max(int(state.header.utime), int(cmd.header.utime) if cmd else 0)
-            self._answered_utime = int(state.header.utime)
-            self._send(ctx, b, utime, state, packet_seq_of(state))
+            state_utime = int(state.header.utime)
+            self._answered_utime = state_utime
+            self._send(ctx, b, max(state_utime, cmd_utime), state, packet_seq_of(state))
             return
         if self.trigger_role == "torque":
             cmd = inbox.trigger()
@@ -159,7 +162,7 @@ class TorqueBridgeNode(Node):
                         utime * 1e-6, b.status())
         if b.nan_rejects != rejects and (b.nan_rejects <= 10 or b.nan_rejects % 1000 == 0):
             log.warning("torque command rejected (#%d): %s", b.nan_rejects, b.last_reason)
-        release = self.params.release_holder and b.source == SOURCE_COMMAND
+        release = self._release_holder and b.source == SOURCE_COMMAND
         flags = FLAG_RELEASE_HOLDER if release else 0
         if flags != self._flags:
             pkt.flags = self._flags = flags
