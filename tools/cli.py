@@ -10,7 +10,7 @@ from pathlib import Path
 
 from runtime.errors import BusError, ConfigError, MulticastRouteError
 
-BENCHMARKS = ("sim", "estimator", "mpfc", "osc", "s3", "lcm", "launch")
+BENCHMARKS = ("sim", "estimator", "mpfc", "osc", "s3", "lcm", "launch", "bridge")
 
 
 def _cmd_launch(args: argparse.Namespace) -> int:

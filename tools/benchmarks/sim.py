@@ -128,9 +128,10 @@ def machine_load() -> dict[str, float]:
 
 
 def collect_timing(child: subprocess.Popen[str], url: str, process: str,
-                   timeout_s: float) -> list[Any]:
+                   timeout_s: float, until_first: bool = False) -> list[Any]:
     """Every ``loop_timing_t`` of ``process`` on ``url``'s TIMING until ``child`` exits (or
-    ``timeout_s``). Polls every 50 ms, so this process never wakes per message."""
+    ``timeout_s``; with ``until_first``, until the first one: the loop is set up). Polls
+    every 50 ms, so this process never wakes per message."""
     from lcmtypes import loop_timing_t
     from runtime.bus import Bus
 
@@ -145,7 +146,7 @@ def collect_timing(child: subprocess.Popen[str], url: str, process: str,
             while (m := sub.pop()) is not None:
                 if m.process == process:
                     msgs.append(m)
-            if done:
+            if done or (until_first and msgs):
                 break
     finally:
         bus.close()
@@ -161,12 +162,17 @@ def loop_figures(msgs: list[Any], warmup_s: float) -> dict[str, Any]:
         t += m.window_s
         if t > warmup_s:
             keep.append(m)
+    if keep:  # a window the input stopped in (a message-driven loop's feeder) is left out
+        rate = float(np.median([m.rate_hz for m in keep]))
+        keep = [m for m in keep if m.rate_hz >= 0.8 * rate]
     if len(keep) < 2:
         return {"windows": len(keep)}
     wall = sum(m.window_s for m in keep[1:])
     cpu = np.concatenate([np.asarray(m.cpu_ms, dtype=float) for m in keep])
     exe = np.concatenate([np.asarray(m.exec_ms, dtype=float) for m in keep])
     late = np.concatenate([np.asarray(m.lateness_ms, dtype=float) for m in keep])
+    age = np.concatenate([np.asarray(m.input_age_ms, dtype=float) for m in keep])
+    age = age[age >= 0]  # -1: the tick had no timestamped input
     ticks = sum(m.ticks for m in keep)
     first, last = keep[0], keep[-1]
 
@@ -190,6 +196,9 @@ def loop_figures(msgs: list[Any], warmup_s: float) -> dict[str, Any]:
         "tick_max_ms": float(exe.max()),
         "late_median_ms": float(np.median(late)),
         "late_p99_ms": float(np.percentile(late, 99)),
+        "input_age_median_ms": float(np.median(age)) if age.size else float("nan"),
+        "input_age_p99_ms": float(np.percentile(age, 99)) if age.size else float("nan"),
+        "deadline_misses": sum(m.deadline_misses for m in keep),
         "deadline_miss_ratio": sum(m.deadline_misses for m in keep) / max(ticks, 1),
         "overruns": int(last.overruns_total - first.overruns_total),
         "stale_skipped": int(last.stale_skipped_total - first.stale_skipped_total),
@@ -208,7 +217,7 @@ def public(fig: dict[str, Any]) -> dict[str, Any]:
 
 def merge_runs(runs: list[dict[str, Any]]) -> dict[str, Any]:
     """Figures of several runs of one variant: medians of the per-run figures, except the
-    tails (max of the per-run p99/max) and the sums."""
+    tails (max of the per-run p99/max), the counts (summed) and their ratios (pooled)."""
     runs = [public(r) for r in runs if r.get("windows", 0) >= 2]
     if not runs:
         return {}
@@ -219,12 +228,17 @@ def merge_runs(runs: list[dict[str, Any]]) -> dict[str, Any]:
             continue
         if k in ("ticks", "windows", "wall_s", "overruns", "stale_skipped", "decode_errors",
                  "lost_slots", "catch_up_steps", "sim_overruns", "packets_lost_by_peer",
-                 "sink_received", "lost"):
+                 "sink_received", "feeder_published", "peer_received", "lost", "packets_sent",
+                 "watchdog_trips", "clamps", "nan_rejects", "deadline_misses"):
             out[k] = sum(vals)
         elif k.endswith(("_max_ms", "_p99_ms")):
             out[k] = max(vals)
         else:
             out[k] = float(np.median(vals))
+    # ratios of the pooled counts
+    out["deadline_miss_ratio"] = out.get("deadline_misses", 0) / max(out["ticks"], 1)
+    if "overrun_ratio" in out:
+        out["overrun_ratio"] = out["overruns"] / max(out["overruns"] + out["ticks"], 1)
     return out
 
 

@@ -1,0 +1,340 @@
+"""`cassie bench bridge`: the torque bridge under the live runner, fed at 2 kHz over LCM.
+
+The bridge is the one of ``hw_config/sim.yaml`` (``processes.torque_bridge.process.make_node``,
+its gains, ``answer_on: command`` in real time, its ``applied_input`` at 200 Hz), run by
+``runtime.loops.LiveRunner`` in a process of its own pinned to the NUC's CPU at SCHED_FIFO
+(``runtime.scheduling``, as ``cassie run`` does). A feeder process on the same CPU stands in
+for the state estimator and the OSC: at 2 kHz of wall clock it publishes a ``robot_state_t``
+on the state channel, then a ``torque_command_t`` computed "from" it on the torque channel
+(``runtime.bus.Bus``, lcm-gen messages of the real sizes), at the OSC's priority; a UDP sink
+process on the target PC's CPU reads the torque packets every 0.5 ms, as the sim does (so a
+packet wakes nobody there). LCM and UDP use ports of the benchmark's own. ``--contend MB``
+(default 8) adds a nice-19 process on the bridge's CPU that sweeps memory, as the estimator
+and the OSC leave the caches in the stack.
+
+Figures come from the bridge's own ``TIMING`` samples after a warm-up: CPU share of a core,
+thread CPU per tick (the node's tick: the state decode, watchdog, clamps, packet, and the
+200 Hz ``applied_input``) beside its wall time, response time from the command's send to
+the packet sent, deadline misses. ``--baseline REV`` times the bridge of git revision REV
+(its ``processes/``, ``runtime/``, ``lcmtypes/``, ``hw_config/``) in runs interleaved with
+this tree's. Nothing is asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import signal
+import socket
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tools.benchmarks.common import print_table, write_json
+from tools.benchmarks.sim import (
+    REPO,
+    bench_lcm_url,
+    child_env,
+    collect_timing,
+    contend,
+    extract_tree,
+    free_udp_port,
+    loop_figures,
+    machine_load,
+    merge_runs,
+    pin,
+    side_by_side_rows,
+    start_child,
+    start_contender,
+    stop_child,
+    use_tree,
+)
+
+PERIOD_S = 0.0005
+BRIDGE_TREE = ("processes", "runtime", "lcmtypes", "hw_config")
+MODULE = "tools.benchmarks.bridge"
+
+
+def _feeder(seconds: float, cpus: list[int], fifo: int) -> int:
+    """The estimator and OSC stand-in: a state, then its torque command, every 0.5 ms."""
+    from lcmtypes import robot_state_t, torque_command_t
+    from runtime.bus import Bus
+    from runtime.config import load_profile
+
+    notes = pin(cpus, fifo)
+    profile = load_profile(REPO / "hw_config" / "sim.yaml")
+    bridge = profile.processes["torque_bridge"]
+    state_ch, torque_ch = bridge.inputs["state"].name, bridge.inputs["torque"].name
+    bus = Bus.for_profile(profile, source="feeder")
+    rng = np.random.default_rng(0)
+    s = robot_state_t()
+    s.num_positions, s.num_velocities, s.num_motors = 35, 32, 10
+    s.q = rng.normal(0, 0.3, 35).tolist()
+    s.motor_torque = [0.0] * 10
+    c = torque_command_t()
+    c.num_motors = 10
+    c.status = "walking"
+    limit = np.array([112.5, 112.5, 195.2, 195.2, 45.0] * 2)
+    # a walk's worth of torques: within the limits, a few over them (the bridge clamps)
+    torques = (rng.normal(0.0, 0.35, (997, 10)) * limit).tolist()
+    vels = rng.normal(0.0, 2.0, (991, 32)).tolist()
+    stop = False
+
+    def on_sig(*_: object) -> None:
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGTERM, on_sig)
+    print("ready", flush=True)
+    period_ns = int(PERIOD_S * 1e9)
+    t0 = time.monotonic_ns()
+    end = t0 + int(seconds * 1e9)
+    k = 0
+    while not stop:
+        target = t0 + k * period_ns
+        now = time.monotonic_ns()
+        if now < target:
+            time.sleep((target - now) / 1e9)
+        utime = k * 500
+        s.header.utime = utime
+        s.v = vels[k % 991]
+        s.packet_seq = k & 0xFF
+        bus.publish(state_ch, s)
+        c.header.utime = utime
+        c.torque = torques[k % 997]
+        bus.publish(torque_ch, c)
+        k += 1
+        if time.monotonic_ns() >= end:
+            break
+    print(json.dumps({"published": k, "notes": notes}), flush=True)
+    return 0
+
+
+def _sink(port: int, cpus: list[int]) -> int:
+    """The target PC stand-in: every 0.5 ms, read (and count) the torque packets that came,
+    as the sim's periodic loop does; like it, it never waits on the socket, so a packet sent
+    to it wakes nobody."""
+    pin(cpus, None)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", port))
+    sock.setblocking(False)
+    buf = bytearray(2048)
+    n = 0
+    stop = False
+
+    def on_sig(*_: object) -> None:
+        nonlocal stop
+        stop = True
+
+    signal.signal(signal.SIGTERM, on_sig)
+    print("ready", flush=True)
+    period_ns = int(PERIOD_S * 1e9)
+    t0 = time.monotonic_ns()
+    k = 0
+    while not stop:
+        k += 1
+        wait = t0 + k * period_ns - time.monotonic_ns()
+        if wait > 0:
+            time.sleep(wait / 1e9)
+        while True:
+            try:
+                sock.recv_into(buf)
+            except (BlockingIOError, InterruptedError):
+                break
+            n += 1
+    print(json.dumps({"received": n}), flush=True)
+    return 0
+
+
+def _bridge(tree: str | None, sink_port: int, seconds: float) -> int:
+    """The bridge of ``tree``'s ``hw_config/sim.yaml`` under the live runner, its UDP link
+    moved to the sink's port."""
+    root = use_tree(tree)
+    import importlib
+    import logging
+
+    from runtime.config import load_profile
+    from runtime.config_types import ChannelConfig
+    from runtime.loops import LiveRunner
+    from runtime.scheduling import apply_scheduling
+
+    logging.basicConfig(level=logging.WARNING, format="%(name)s %(levelname)s: %(message)s")
+    profile = load_profile(root / "hw_config" / "sim.yaml")
+    proc = profile.processes["torque_bridge"]
+    out = ChannelConfig("robot_input", f"udp:127.0.0.1:{sink_port}", ("127.0.0.1", sink_port))
+    proc = dataclasses.replace(proc, outputs={**proc.outputs, "robot_input": out})
+    profile = dataclasses.replace(profile, processes={**profile.processes,
+                                                      "torque_bridge": proc})
+    for note in apply_scheduling(proc):
+        if "failed" in note:
+            print(note, file=sys.stderr)
+    node = importlib.import_module(proc.module).make_node(proc, profile)
+    return LiveRunner(node, proc, profile).run(duration_s=seconds)
+
+
+def _run_once(tree: Path | None, args: argparse.Namespace, nuc_cpus: list[int],
+              target_cpus: list[int], feeder_fifo: int) -> dict[str, Any]:
+    """One live run of the bridge of ``tree`` (None: this one) with a fresh feeder and sink."""
+    url = bench_lcm_url()
+    env = child_env(url)
+    port = free_udp_port()
+    sink = start_child(["--role", "sink", "--port", str(port), "--cpus",
+                        ",".join(map(str, target_cpus))], env, MODULE)
+    assert sink.stdout is not None
+    sink.stdout.readline()
+    cmd = ["--role", "bridge", "--port", str(port), "--seconds",
+           str(args.seconds + args.warmup + 3.0)]  # it starts before the feeder
+    if tree is not None:
+        cmd += ["--tree", str(tree)]
+    hog = start_contender(args.contend, nuc_cpus, MODULE)
+    bridge = start_child(cmd, env, MODULE)
+    feeder = None
+    try:
+        # the bridge's first TIMING says it is set up: start feeding then
+        msgs = collect_timing(bridge, url, "torque_bridge", 60.0, until_first=True)
+        if not msgs:
+            raise SystemExit(f"the bridge did not start:\n{stop_child(bridge)[1][-3000:]}")
+        feeder = start_child(["--role", "feeder", "--seconds", str(args.seconds + args.warmup),
+                              "--cpus", ",".join(map(str, nuc_cpus)), "--fifo",
+                              str(feeder_fifo)], env, MODULE)
+        msgs += collect_timing(bridge, url, "torque_bridge", args.seconds + args.warmup + 60.0)
+        bridge.wait(timeout=30.0)
+    finally:
+        _, bridge_err = stop_child(bridge)
+        feed_out = stop_child(feeder)[0] if feeder is not None else ""
+        sink_out, _ = stop_child(sink)
+        if hog is not None:
+            stop_child(hog)
+    if bridge.returncode != 0:
+        raise SystemExit(f"the bridge exited with {bridge.returncode}:\n{bridge_err[-3000:]}")
+    fig = loop_figures(msgs, args.warmup)
+    if fig.get("windows", 0) < 2:
+        raise SystemExit(f"no TIMING from the bridge after the warm-up:\n{bridge_err[-3000:]}")
+    c, first, last = fig.pop("_counter"), fig.pop("_first"), fig.pop("_last")
+    for name in ("packets_sent", "watchdog_trips", "clamps", "nan_rejects"):
+        fig[name] = int(c(last, name) - c(first, name))
+    try:
+        fig["feeder_published"] = json.loads(feed_out.strip().splitlines()[-1])["published"]
+        fig["sink_received"] = json.loads(sink_out.strip().splitlines()[-1])["received"]
+    except (ValueError, IndexError, KeyError):
+        pass
+    for ln in [ln for ln in bridge_err.splitlines() if "failed" in ln or "Error" in ln][:5]:
+        print("bridge:", ln, file=sys.stderr)
+    return fig
+
+
+ROWS = (
+    ("CPU share of a core", "cpu_share"),
+    ("tick CPU median (ms)", "tick_cpu_median_ms"),
+    ("tick CPU p90 (ms)", "tick_cpu_p90_ms"),
+    ("tick CPU p99 (ms)", "tick_cpu_p99_ms"),
+    ("tick wall median (ms)", "tick_median_ms"),
+    ("tick wall p99 (ms)", "tick_p99_ms"),
+    ("response (command sent -> packet sent) median (ms)", "input_age_median_ms"),
+    ("response p99 (ms)", "input_age_p99_ms"),
+    ("deadline miss ratio", "deadline_miss_ratio"),
+    ("ticks per second", "rate_hz"),
+    ("stale commands skipped", "stale_skipped"),
+    ("clamped torques", "clamps"),
+    ("ticks", "ticks"),
+)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="cassie bench bridge", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", metavar="FILE", help="write the figures as one flat JSON object")
+    ap.add_argument("--seconds", type=float, default=5.0,
+                    help="timed seconds of each run (after the warm-up; default 5)")
+    ap.add_argument("--warmup", type=float, default=1.0, help="seconds left out at the start")
+    ap.add_argument("--repeats", type=int, default=2, help="runs of each variant (default 2)")
+    ap.add_argument("--contend", metavar="MB", type=float, default=8.0,
+                    help="a nice-19 process on the bridge's CPU sweeping MB of memory, as the "
+                         "estimator and OSC share that CPU in the stack (default 8; 0: none)")
+    ap.add_argument("--baseline", metavar="REV",
+                    help="also run the bridge of git revision REV, interleaved with this tree's")
+    ap.add_argument("--role", choices=("feeder", "sink", "bridge", "contend"),
+                    help=argparse.SUPPRESS)
+    ap.add_argument("--port", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--tree", help=argparse.SUPPRESS)
+    ap.add_argument("--cpus", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--fifo", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--mb", type=float, default=0.0, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    cpus = [int(c) for c in args.cpus.split(",") if c]
+    if args.role == "feeder":
+        return _feeder(args.seconds, cpus, args.fifo)
+    if args.role == "sink":
+        return _sink(args.port, cpus)
+    if args.role == "bridge":
+        return _bridge(args.tree, args.port, args.seconds)
+    if args.role == "contend":
+        return contend(args.mb, cpus)
+
+    os.environ.setdefault("MENAGERIE_ROOT", "/work/shared/menagerie")
+    from runtime.config import load_profile
+
+    profile = load_profile(REPO / "hw_config" / "sim.yaml")
+    bridge = profile.processes["torque_bridge"]
+    nuc_cpus = list(bridge.cpu_affinity or ())
+    target_cpus = list(profile.processes["sim"].cpu_affinity or ())
+    feeder_fifo = profile.processes["osc"].rt_priority or 0
+    pin(target_cpus, None)  # this process reads TIMING on the target PC's CPU
+    base_tree = extract_tree(args.baseline, BRIDGE_TREE) if args.baseline else None
+    variants: list[tuple[str, Path | None]] = [("this", None)]
+    if base_tree is not None:
+        variants.insert(0, ("baseline", base_tree))
+    load0 = machine_load()
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _ in variants}
+    for k in range(args.repeats):
+        for name, tree in variants:
+            fig = _run_once(tree, args, nuc_cpus, target_cpus, feeder_fifo)
+            runs[name].append(fig)
+            print(f"run {k + 1}/{args.repeats} {name}: CPU share {fig['cpu_share']:.3f}, tick "
+                  f"CPU median {fig['tick_cpu_median_ms'] * 1e3:.1f} us, p99 "
+                  f"{fig['tick_cpu_p99_ms'] * 1e3:.1f} us, {fig['rate_hz']:.0f} ticks/s",
+                  flush=True)
+    load1 = machine_load()
+    merged = {name: merge_runs(r) for name, r in runs.items()}
+    figures: dict[str, Any] = {
+        "description": f"torque bridge of hw_config/sim.yaml under LiveRunner (CPU {nuc_cpus}, "
+                       f"SCHED_FIFO {bridge.rt_priority}), fed a state then a torque command "
+                       f"every 0.5 ms over LCM from CPU {nuc_cpus}, UDP sink on CPU "
+                       f"{target_cpus}; contender sweeping {args.contend:g} MB on the "
+                       f"bridge's CPU; {args.repeats} x {args.seconds:g} s",
+        "contend_mb": args.contend,
+        "seconds_per_run": args.seconds,
+        "repeats": args.repeats,
+        "load_avg_1min_before": load0["load_avg_1min"],
+        "load_avg_1min_after": load1["load_avg_1min"],
+        "ref_numpy_op_us": max(load0["ref_numpy_op_us"], load1["ref_numpy_op_us"]),
+    }
+    for name, fig in merged.items():
+        prefix = "" if name == "this" else "baseline_"
+        figures.update({f"{prefix}{k}": v for k, v in fig.items()})
+    this = merged["this"]
+    print_table("torque bridge at 2 kHz under LiveRunner (this tree)",
+                [(label, this.get(key)) for label, key in ROWS if key in this] + [
+                    ("commands published / packets received by the sink",
+                     f"{this.get('feeder_published')} / {this.get('sink_received')}"),
+                    ("load average before / after",
+                     f"{load0['load_avg_1min']:.2f} / {load1['load_avg_1min']:.2f}"),
+                    ("tiny numpy op (us)", figures["ref_numpy_op_us"])])
+    if args.baseline:
+        figures["baseline_rev"] = args.baseline
+        for key in ("cpu_share", "tick_cpu_median_ms", "tick_cpu_p99_ms"):
+            if key in this and key in merged["baseline"]:
+                figures[f"{key.removesuffix('_ms')}_ratio"] = this[key] / merged["baseline"][key]
+        print_table(f"side by side: baseline {args.baseline} -> this tree ({args.repeats} "
+                    "interleaved runs each)", side_by_side_rows(merged["baseline"], this, ROWS))
+    write_json(args.json, "bridge", figures)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
