@@ -12,11 +12,11 @@ import lcmtypes
 class torque_command_t(object):
     """ Motor torque command (OSC_TORQUE), motor order of the MuJoCo model's actuators. """
 
-    __slots__ = ["header", "num_motors", "torque", "mode", "status"]
+    __slots__ = ["header", "num_motors", "torque", "mode", "state_packet_seq", "status"]
 
-    __typenames__ = ["lcmtypes.header_t", "int32_t", "double", "int8_t", "string"]
+    __typenames__ = ["lcmtypes.header_t", "int32_t", "double", "int8_t", "int32_t", "string"]
 
-    __dimensions__ = [None, None, ["num_motors"], None, None]
+    __dimensions__ = [None, None, ["num_motors"], None, None, None]
 
     def __init__(self):
         self.header = lcmtypes.header_t()
@@ -31,9 +31,16 @@ class torque_command_t(object):
         LCM Type: int8_t
         """
 
-        self.status = ""
+        self.state_packet_seq = 0
         """
         0 walking, 1 standing, 2 safe (joint damping), 3 off
+        LCM Type: int32_t
+        """
+
+        self.status = ""
+        """
+        robot_state_t.packet_seq of the state it was computed
+        from: the torque bridge's ack, without it reading states
         LCM Type: string
         """
 
@@ -49,7 +56,7 @@ class torque_command_t(object):
         self.header._encode_one(buf)
         buf.write(struct.pack(">i", self.num_motors))
         buf.write(struct.pack('>%dd' % self.num_motors, *self.torque[:self.num_motors]))
-        buf.write(struct.pack(">b", self.mode))
+        buf.write(struct.pack(">bi", self.mode, self.state_packet_seq))
         __status_encoded = self.status.encode('utf-8')
         buf.write(struct.pack('>I', len(__status_encoded)+1))
         buf.write(__status_encoded)
@@ -71,7 +78,7 @@ class torque_command_t(object):
         self.header = lcmtypes.header_t._decode_one(buf)
         self.num_motors = struct.unpack(">i", buf.read(4))[0]
         self.torque = struct.unpack('>%dd' % self.num_motors, buf.read(self.num_motors * 8))
-        self.mode = struct.unpack(">b", buf.read(1))[0]
+        self.mode, self.state_packet_seq = struct.unpack(">bi", buf.read(5))
         __status_len = struct.unpack('>I', buf.read(4))[0]
         self.status = buf.read(__status_len)[:-1].decode('utf-8', 'replace')
         return self
@@ -80,7 +87,7 @@ class torque_command_t(object):
     def _get_hash_recursive(parents):
         if torque_command_t in parents: return 0
         newparents = parents + [torque_command_t]
-        tmphash = (0x85fc72ce393a2549+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
+        tmphash = (0xf8d1418fea58db15+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

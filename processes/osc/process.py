@@ -76,6 +76,7 @@ class OscNode(Node):
             torque = [0.0] * len(torque)
         cmd = self._torque
         cmd.header.utime = state.header.utime
+        cmd.state_packet_seq = state.packet_seq
         cmd.torque = torque
         cmd.mode = dbg.mode
         cmd.status = dbg.status

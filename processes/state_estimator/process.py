@@ -49,7 +49,9 @@ class StateEstimatorNode(Node):
     outputs = {"state": robot_state_t, "network_state": robot_state_t, "contact": contact_t}
     trigger_role = "robot_output"
     trigger_policy = "each"
-    max_backlog = 40  # 20 ms of packets: beyond that, skip (and count) the oldest: bounded lag
+    max_backlog = 400  # 200 ms of packets: a stall shorter than that loses none (they are
+    # integrated late, in order: lost packets would make the estimate drift); beyond it the
+    # oldest are dropped and counted, so the lag stays bounded
 
     def __init__(self, params: EstimatorParams | None = None, fused: bool = True) -> None:
         self.params = params or EstimatorParams()

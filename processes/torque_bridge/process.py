@@ -85,6 +85,7 @@ class TorqueBridgeNode(Node):
             # latency, made exact), so lockstep runs behave as the 2 kHz cycle does
             self.trigger_role = "torque"
         self.unmatched = 0  # lockstep: torques that did not answer the newest state
+        self._lazy: Inbox | None = None  # where the fallback may read the newest state
         self._pending: tuple[list[float], int] | None = None
         self.bridge = TorqueBridge(self.params)
         self.link = LinkCounter()
@@ -106,19 +107,23 @@ class TorqueBridgeNode(Node):
         b = self.bridge
         if self.answer_on == "command":
             cmd = inbox.trigger()
-            state = inbox.latest("state")
-            cmd_utime = 0
             if cmd is not None:
+                # the command carries its state's utime and packet seq (the ack): no state is
+                # decoded per command; the newest one is read only if the fallback needs its
+                # motor velocities (a rejected command)
                 cmd_utime = int(cmd.header.utime)
                 b.on_command(cmd.torque, cmd_utime)
-            elif state is None or int(state.header.utime) <= self._answered_utime:
-                return  # a watchdog tick with no new state: nothing to answer
-            if state is None:  # a command before any state: answer at its own time
-                self._send(ctx, b, cmd_utime, None, 0)
+                self._answered_utime = max(self._answered_utime, cmd_utime)
+                self._lazy = inbox
+                self._send(ctx, b, cmd_utime, None, int(cmd.state_packet_seq) & 0xFF)
+                self._lazy = None
                 return
-            state_utime = int(state.header.utime)
-            self._answered_utime = state_utime
-            self._send(ctx, b, max(state_utime, cmd_utime), state, packet_seq_of(state))
+            # a watchdog tick (no command for WATCHDOG_TICK_S): answer a newer state, if any
+            state = inbox.latest("state")
+            if state is None or int(state.header.utime) <= self._answered_utime:
+                return
+            self._answered_utime = int(state.header.utime)
+            self._send(ctx, b, self._answered_utime, state, packet_seq_of(state))
             return
         if self.trigger_role == "torque":
             cmd = inbox.trigger()
@@ -143,6 +148,8 @@ class TorqueBridgeNode(Node):
         """The motor velocities of the state being answered (for the damping fallback only:
         read when the bridge falls back, not per command); NaN without a well-formed state,
         which makes the fallback zero torque."""
+        if self._state is None and self._lazy is not None:
+            self._state = self._lazy.latest("state")
         v = self._state.v if self._state is not None else ()
         if self._dofs and len(v) > self._dof_max:
             self._mv[:] = [v[i] for i in self._dofs]

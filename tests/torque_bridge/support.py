@@ -30,9 +30,12 @@ def state(utime: int, motor_vel: float = 0.0, seq: int = 0) -> robot_state_t:
     return s
 
 
-def command(utime: int, torque: Any) -> torque_command_t:
+def command(utime: int, torque: Any, seq: int | None = None) -> torque_command_t:
+    """A torque command computed from the state at ``utime`` (whose packet seq is ``seq``,
+    by default the 2 kHz count utime / 500 us, as ``state`` numbers them in these tests)."""
     c = torque_command_t()
     c.header.utime = utime
+    c.state_packet_seq = (utime // 500 if seq is None else seq) & 0xFF
     t = [float(x) for x in torque]
     c.num_motors = len(t)
     c.torque = t
