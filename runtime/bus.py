@@ -218,18 +218,20 @@ class Bus:
         capacity: int = 4096,
         wake: bool = True,
         slot_us: int | None = None,
+        second_half: bool = False,
     ) -> Subscription:
         """Subscribe to ``channel`` on its domain; ``msg_type`` None keeps raw bytes.
         ``wake`` False: its messages are read by ``handle_pending`` but never make
         ``filenos`` readable (a loop's non-trigger inputs). ``slot_us``: the kernel passes
-        only the messages in the first half of each slot of sim time (``udpm``)."""
+        only the messages in the first half of each slot of sim time (``udpm``), or with
+        ``second_half`` the others."""
         if channel in self._subs:
             return self._subs[channel]
         sub = Subscription(channel, msg_type, policy, capacity)
         if slot_us and not sub._header_first:
             slot_us = None
         self._receiver(self.route(channel)[0], wake).subscribe(channel, sub._on_message,
-                                                               slot_us)
+                                                               slot_us, second_half)
         self._subs[channel] = sub
         return sub
 

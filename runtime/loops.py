@@ -126,9 +126,13 @@ class LiveRunner:
                 # the others are read when it ticks. A rate-limited trigger is thinned by the
                 # kernel too: the 1 kHz OSC is not even woken by the states it would skip
                 wake = role == node.trigger_role or node.receive_thread
+                slot_us = thin if role == node.trigger_role else None
+                fill_hz = node.off_slot_wake.get(role) if profile.mode == "realtime" else None
+                if fill_hz:
+                    wake, slot_us = True, round(1e6 / fill_hz)
                 self.ports[role] = self.bus.subscribe(
                     ch.name, None if typ is bytes else typ, policy, wake=wake,
-                    slot_us=thin if role == node.trigger_role else None,
+                    slot_us=slot_us, second_half=bool(fill_hz),
                 )
         for role in node.outputs:
             ch = self._channel(role, proc.outputs, "outputs")
@@ -166,6 +170,9 @@ class LiveRunner:
         for fd in self._fds:
             self._poller.register(fd, select.POLLIN)
         self._udp_in = [p for p in self.ports.values() if isinstance(p, UdpReceiver)]
+        #: inputs that wake a message-driven loop besides its trigger (``Node.off_slot_wake``)
+        self._fill_ports = [self.ports[r] for r in node.off_slot_wake
+                            if r in self.ports and profile.mode == "realtime"]
 
     def _channel(self, role: str, table: dict[str, ChannelConfig], section: str) -> ChannelConfig:
         if role not in table:
@@ -342,7 +349,8 @@ class LiveRunner:
             else:
                 self._poll(poll_s)
             now = time.monotonic_ns()
-            if port.fresh:
+            triggered = port.fresh
+            if triggered:
                 if self.node.trigger_policy == "each":
                     if self.node.max_backlog is not None:
                         port.trim(self.node.max_backlog)
@@ -366,8 +374,17 @@ class LiveRunner:
                         else:
                             self.timer.rate_skipped_total += 1
                 last_trigger_ns = time.monotonic_ns()
-            elif timeout_s is not None and now - last_trigger_ns > timeout_s * 1e9:
-                self.inbox._trigger = None
+            fill = next((p for p in self._fill_ports if p.fresh), None)
+            if fill is not None:
+                # a message to fill in (``Node.off_slot_wake``), after the trigger's tick if both
+                # came: the node ticks with no trigger, timed like any tick of the loop
+                self._tick_on(None, fill, deadline_ns)
+                for p in self._fill_ports:
+                    p.fresh = False  # answered (or not newer): wait for the next one
+                last_trigger_ns = time.monotonic_ns()
+            elif (not triggered and timeout_s is not None
+                  and now - last_trigger_ns > timeout_s * 1e9):
+                self.inbox._trigger = None  # the watchdog's tick
                 self.node.tick(self.ctx, self.inbox)
                 last_trigger_ns = time.monotonic_ns()
             now = time.monotonic_ns()
@@ -376,10 +393,16 @@ class LiveRunner:
                 break
 
     def _tick_on(self, msg: Any, port: Port, deadline_ns: int) -> None:
+        """One timed tick on ``msg`` (None: no trigger, for the newest message of ``port`` to
+        fill in, timed from its arrival)."""
         start = time.monotonic_ns()
         c0 = time.thread_time_ns()
-        sent = _send_ns(msg) or port.last_receive_ns
-        utime = _utime(msg)
+        if msg is None:
+            sent = port.last_receive_ns
+            utime = (port.newest_utime() if isinstance(port, Subscription) else None) or 0
+        else:
+            sent = _send_ns(msg) or port.last_receive_ns
+            utime = _utime(msg)
         if utime:
             self.ctx.now_utime = utime
         self.inbox._trigger = msg

@@ -125,6 +125,11 @@ class Node:
     #: with "each": the most messages kept waiting when the loop falls behind its input; older
     #: ones are dropped and counted as stale, so latency stays bounded (None: keep them all)
     max_backlog: int | None = None
+    #: live, real time only: other inputs that also wake the loop, each only for its messages
+    #: in the second half of every slot of the given rate in sim time (thinned in the kernel):
+    #: the states a loop at that rate skips, answered by ``tick`` with no trigger (the torque
+    #: bridge fills in the packets of a 1 kHz OSC's skipped states)
+    off_slot_wake: Mapping[str, float] = {}
     #: live only: a receive thread keeps taking messages into the port buffers while ``tick``
     #: runs (as a camera's polling thread fills a shared frame buffer for the mapping thread);
     #: the harness ignores it (everything there is in sim-time order)

@@ -64,7 +64,9 @@ _JGE = 0x35  # BPF_JMP | BPF_JGE | BPF_K
 _JA = 0x05  # BPF_JMP | BPF_JA
 
 
-def channel_filter(channels: dict[str, int | None]) -> list[tuple[int, int, int, int]]:
+def channel_filter(
+    channels: dict[str, int | tuple[int, bool] | None],
+) -> list[tuple[int, int, int, int]]:
     """A classic BPF program that accepts LCM short messages on ``channels`` (exact names)
     and every fragment of a long message (the first fragment names the channel, the others
     cannot be judged), and drops everything else.
@@ -74,7 +76,8 @@ def channel_filter(channels: dict[str, int | None]) -> list[tuple[int, int, int,
     so a 1 kHz loop on 2 kHz states is woken by every other state only. (The low 32 bits of
     the big-endian utime, at its fixed place after the channel name and the type's
     fingerprint; they stay in step with the full utime for any slot dividing 2^32 us, and
-    for others still alternate the same way.)
+    for others still alternate the same way.) A slot given as ``(slot, True)`` passes the
+    second half instead: the messages such a loop skips, for a loop that fills them in.
     """
     code: list[list[int | str]] = []  # [op, jt, jf, k]; jt/jf/k may name a label
     labels: dict[str, int] = {}
@@ -93,12 +96,16 @@ def channel_filter(channels: dict[str, int | None]) -> list[tuple[int, int, int,
             code.append([op, 0, 0, _UDP_HEADER + 8 + off])
             code.append([_JEQ, 0, nxt, int.from_bytes(data[off : off + n], "big")])
             off += n
-        slot = channels[name]
+        spec = channels[name]
+        slot, second = spec if isinstance(spec, tuple) else (spec, False)
         if slot:
             utime_low = _UDP_HEADER + 8 + len(data) + 8 + 4
             code.append([_LD_W, 0, 0, utime_low])
             code.append([_MOD_K, 0, 0, int(slot)])
-            code.append([_JGE, "reject", 0, int(slot) // 2])
+            if second:
+                code.append([_JGE, 0, "reject", int(slot) // 2])
+            else:
+                code.append([_JGE, "reject", 0, int(slot) // 2])
         code.append([_JA, 0, 0, "accept"])
     labels["accept"] = len(code)
     code.append([_RET, 0, 0, 0xFFFFFFFF])
@@ -180,7 +187,8 @@ class UdpmReceiver:
         self._buf = bytearray(65536)
         self._view = memoryview(self._buf)
         self._exact: dict[str, list[Handler]] = {}
-        self._slots: dict[str, int] = {}  # channel -> kernel-side slot thinning (us)
+        #: channel -> kernel-side slot thinning (us, and whether the second half passes)
+        self._slots: dict[str, tuple[int, bool]] = {}
         self._patterns: list[tuple[re.Pattern[str], Handler]] = []
         self._route: dict[str, list[Handler]] = {}  # channel -> handlers, memoised
         self._partial: OrderedDict[tuple[Any, int], _Partial] = OrderedDict()
@@ -196,14 +204,15 @@ class UdpmReceiver:
         return self.sock.fileno()
 
     def subscribe(self, channel_or_regex: str, handler: Handler,
-                  slot_us: int | None = None) -> None:
+                  slot_us: int | None = None, second_half: bool = False) -> None:
         """Call ``handler(channel, payload)`` for every message on a matching channel.
         ``slot_us`` (an exact channel whose type starts with a header): let the kernel pass
-        only messages in the first half of each slot of that many microseconds."""
+        only messages in the first half of each slot of that many microseconds (the second
+        half with ``second_half``)."""
         if re.fullmatch(r"[A-Za-z0-9_]+", channel_or_regex):
             self._exact.setdefault(channel_or_regex, []).append(handler)
             if slot_us:
-                self._slots[channel_or_regex] = int(slot_us)
+                self._slots[channel_or_regex] = (int(slot_us), second_half)
         else:
             self._patterns.append((re.compile(channel_or_regex), handler))
         self._route.clear()

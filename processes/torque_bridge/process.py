@@ -10,7 +10,11 @@ counts round trips and can run in lockstep. What sends a packet (``params.answer
   each torque command, plus a watchdog"): the torque computed from a state reaches the target
   PC in the same 0.5 ms cycle when the chain keeps up. When commands stop, a watchdog tick
   every ``WATCHDOG_TICK_S`` of wall time answers the newest state with the fallback once no
-  fresh command is left (the watchdog counts in state sim time, as always).
+  fresh command is left (the watchdog counts in state sim time, as always). With
+  ``params.fill_hz`` (the OSC's ``max_rate_hz``) the bridge is also woken by each state in
+  the second half of every slot of that rate -- the states a rate-limited OSC skips, passed
+  by the kernel (``Node.off_slot_wake``) -- and answers it with the newest torque, so the
+  target PC still gets a packet every 0.5 ms cycle from a 1 kHz OSC.
 * ``state``: each robot state, with the newest command.
 * ``torque`` (lockstep): each torque answers the state it was computed from, sending the
   torque of the state before (the robot's one-tick latency, made exact).
@@ -70,7 +74,8 @@ class TorqueBridgeNode(Node):
     trigger_role = "state"
     trigger_policy = "newest"
 
-    def __init__(self, params: BridgeParams | None = None, answer_on: str = "state") -> None:
+    def __init__(self, params: BridgeParams | None = None, answer_on: str = "state",
+                 fill_hz: float | None = None) -> None:
         self.params = params or BridgeParams()
         self.answer_on = answer_on
         self.trigger_timeout_s: float | None = None
@@ -78,6 +83,8 @@ class TorqueBridgeNode(Node):
             self.trigger_role = "torque"
             self.trigger_timeout_s = WATCHDOG_TICK_S
             self._answered_utime = -1
+            if fill_hz:
+                self.off_slot_wake = {"state": float(fill_hz)}
         if answer_on == "torque":
             # lockstep: answer a state once the controller has run on it, so the target PC
             # steps only after the whole chain (estimator -> OSC -> here) has seen its state;
@@ -215,14 +222,21 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     answer = str(proc.params.get("answer_on", "auto"))
     choices = ("auto", "command", "state", "torque")
     for key in proc.params:
-        if key != "answer_on":
+        if key not in ("answer_on", "fill_hz"):
             raise ConfigError(str(proc.source_file), proc.key("params", str(key)),
-                              "unknown parameter", "answer_on")
+                              "unknown parameter", "answer_on, fill_hz")
+    fill_hz = proc.params.get("fill_hz")
+    if fill_hz is not None and (isinstance(fill_hz, bool) or not isinstance(fill_hz, int | float)
+                                or not 0 < fill_hz <= 2000):
+        raise ConfigError(str(proc.source_file), proc.key("params", "fill_hz"),
+                          f"not a rate: {fill_hz!r}",
+                          "a rate in Hz in (0, 2000] (the OSC's max_rate_hz), or leave it out")
     if answer not in choices:
         raise ConfigError(str(proc.source_file), proc.key("params", "answer_on"),
                           f"unknown value {answer!r}", ", ".join(choices))
     if answer == "auto":
         answer = "torque" if profile.mode == "lockstep" else "command"
-    node = TorqueBridgeNode(BridgeParams.from_yaml(path), answer)
+    node = TorqueBridgeNode(BridgeParams.from_yaml(path), answer,
+                            float(fill_hz) if fill_hz is not None else None)
     node.name = proc.name
     return node

@@ -105,6 +105,23 @@ def test_the_kernel_thins_a_rate_limited_channel_to_the_first_half_of_each_slot(
     assert rx.received == 10
 
 
+def test_the_kernel_passes_the_other_half_of_each_slot_to_a_loop_that_fills_it_in(url: str):
+    from lcmtypes import robot_state_t
+
+    rx = UdpmReceiver(url)
+    got: list[int] = []
+    rx.subscribe("CASSIE_STATE", lambda c, d: got.append(robot_state_t.decode(d).header.utime),
+                 slot_us=1000, second_half=True)
+    tx = lcm.LCM(url + "?ttl=0")
+    utimes = [2**32 - 3000 + 500 * k for k in range(20)]
+    for u in utimes:
+        m = robot_state_t()
+        m.header.utime = u
+        tx.publish("CASSIE_STATE", m.encode())
+    _drain(rx)
+    assert got == utimes[1::2]  # exactly the states the first-half loop does not get
+
+
 def test_a_filter_program_accepts_exactly_the_names_it_was_built_for() -> None:
     prog = channel_filter({"CASSIE_STATE": None, "OSC_TORQUE": 1000})
     # magic checks, 2 instructions per 4/2/1-byte compare of "name\0", and the two returns

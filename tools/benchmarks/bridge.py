@@ -61,7 +61,9 @@ MODULE = "tools.benchmarks.bridge"
 
 
 def _feeder(seconds: float, cpus: list[int], fifo: int) -> int:
-    """The estimator and OSC stand-in: a state, then its torque command, every 0.5 ms."""
+    """The estimator and OSC stand-in: a state every 0.5 ms, then its torque command at the
+    OSC's rate (sim.yaml's ``max_rate_hz``: the first state of each slot; the bridge answers
+    the others itself, ``params.fill_hz``)."""
     from lcmtypes import robot_state_t, torque_command_t
     from runtime.bus import Bus
     from runtime.config import load_profile
@@ -71,6 +73,8 @@ def _feeder(seconds: float, cpus: list[int], fifo: int) -> int:
     bridge = profile.processes["torque_bridge"]
     state_ch, torque_ch = bridge.inputs["state"].name, bridge.inputs["torque"].name
     bus = Bus.for_profile(profile, source="feeder")
+    osc_hz = profile.processes["osc"].max_rate_hz
+    slot_us = round(1e6 / osc_hz) if osc_hz else 0
     rng = np.random.default_rng(0)
     s = robot_state_t()
     s.num_positions, s.num_velocities, s.num_motors = 35, 32, 10
@@ -105,9 +109,11 @@ def _feeder(seconds: float, cpus: list[int], fifo: int) -> int:
         s.v = vels[k % 991]
         s.packet_seq = k & 0xFF
         bus.publish(state_ch, s)
-        c.header.utime = utime
-        c.torque = torques[k % 997]
-        bus.publish(torque_ch, c)
+        if not slot_us or utime % slot_us < slot_us // 2:
+            c.header.utime = utime
+            c.state_packet_seq = s.packet_seq
+            c.torque = torques[k % 997]
+            bus.publish(torque_ch, c)
         k += 1
         if time.monotonic_ns() >= end:
             break
@@ -320,7 +326,7 @@ def main(argv: list[str] | None = None) -> int:
     this = merged["this"]
     print_table("torque bridge at 2 kHz under LiveRunner (this tree)",
                 [(label, this.get(key)) for label, key in ROWS if key in this] + [
-                    ("commands published / packets received by the sink",
+                    ("states published / packets received by the sink",
                      f"{this.get('feeder_published')} / {this.get('sink_received')}"),
                     ("load average before / after",
                      f"{load0['load_avg_1min']:.2f} / {load1['load_avg_1min']:.2f}"),
