@@ -143,13 +143,14 @@ class LoopTimer:
         msg.period_mean_ms = self._period_sum_ns / periods / _NS_PER_MS if n > 1 else 0.0
         msg.period_max_ms = self._period_max_ns / _NS_PER_MS
         if n:
-            ex, la, ag = self._exec[:n], self._late[:n], self._age[:n]
-            msg.exec_p50_ms, msg.exec_p99_ms = (float(x) for x in np.percentile(ex, [50, 99]))
-            msg.exec_max_ms = float(ex.max())
-            msg.lateness_p50_ms, msg.lateness_p99_ms = (
-                float(x) for x in np.percentile(la, [50, 99])
-            )
-            msg.lateness_max_ms = float(la.max())
+            ex, la, ag, cp = self._exec[:n], self._late[:n], self._age[:n], self._cpu[:n]
+            # one percentile call for the three always-finite series (each call costs ~30 us)
+            three = np.stack((ex, la, cp))
+            (e50, l50, c50), (e99, l99, c99) = np.percentile(three, [50, 99], axis=1).tolist()
+            emax, lmax, cmax = three.max(axis=1).tolist()
+            msg.exec_p50_ms, msg.exec_p99_ms, msg.exec_max_ms = e50, e99, emax
+            msg.lateness_p50_ms, msg.lateness_p99_ms, msg.lateness_max_ms = l50, l99, lmax
+            msg.cpu_p50_ms, msg.cpu_p99_ms, msg.cpu_max_ms = c50, c99, cmax
             if np.isfinite(ag).any():
                 good = ag[np.isfinite(ag)]
                 msg.input_age_p50_ms, msg.input_age_p99_ms = (
@@ -158,9 +159,6 @@ class LoopTimer:
                 msg.input_age_max_ms = float(good.max())
             else:
                 msg.input_age_p50_ms = msg.input_age_p99_ms = msg.input_age_max_ms = -1.0
-            cp = self._cpu[:n]
-            msg.cpu_p50_ms, msg.cpu_p99_ms = (float(x) for x in np.percentile(cp, [50, 99]))
-            msg.cpu_max_ms = float(cp.max())
             msg.num_samples = n
             msg.exec_ms = ex.tolist()
             msg.cpu_ms = cp.tolist()

@@ -283,6 +283,14 @@ def run_live_trial(
         # processes take seconds to start while the sim already runs
         judge = Judge(footholds, math.inf, ground)
         operator = Operator(vx)
+        # this process is the operator's radio and the judge: a laptop tool, on its CPUs (as
+        # the supervisor), never on the NUC's, and its CPU goes into the table as a watcher's
+        home = profile.hosts.get(profile.supervisor_host or "laptop")
+        if home is not None and home.cpus:
+            try:
+                os.sched_setaffinity(0, home.cpus)
+            except OSError:
+                pass
         bus = Bus(profile.lcm_url, source="operator")
         newest: list[Any] = [None]
 
@@ -317,6 +325,7 @@ def run_live_trial(
         wall_limit = 120.0 + duration_s * (60.0 if mode == "lockstep" else 4.0)
         t0 = time.perf_counter()
         next_cmd = t0
+        cpu0 = time.process_time()
         try:
             while sup.poll() is None and time.perf_counter() - t0 < wall_limit:
                 bus.poll_every(0.01)  # a watcher: batched reads
@@ -330,6 +339,7 @@ def run_live_trial(
                     break
         finally:
             trial.wall_s = time.perf_counter() - t0
+            own_cpu_s = time.process_time() - cpu0
             if sup.poll() is None:
                 sup.send_signal(signal.SIGINT)
                 try:
@@ -350,6 +360,7 @@ def run_live_trial(
             rep = analyse(log_file, load_budgets(HW_CONFIG_DIR / "budgets.yaml"))
             trial.timing = rep["loops"]
             trial.cpu = rep["cpu"]
+            _add_own_cpu(trial.cpu, own_cpu_s, trial.wall_s)
             trial.realtime = rep["realtime"]
         else:
             trial.notes.append("no LCM log was recorded: no timing summary")
@@ -358,6 +369,20 @@ def run_live_trial(
     if walked < duration_s - 0.01 and judge.fall_t is None:
         trial.success = False
     return trial
+
+
+def _add_own_cpu(cpu: dict[str, Any], cpu_s: float, wall_s: float) -> None:
+    """This process (operator and judge, a watcher) as a row of the CPU table, in the total."""
+    procs = cpu.get("processes")
+    if procs is None or wall_s <= 0:
+        return
+    share = cpu_s / wall_s
+    procs["experiment"] = {"source": "self", "cpu_s": cpu_s, "wall_s": wall_s,
+                           "cpu_share": share, "cpu_per_sim_s": float("nan"),
+                           "budget_share": float("nan"), "within_budget": True}
+    cpu["total_share"] = cpu.get("total_share", 0.0) + share
+    limit = cpu.get("total_budget", 0.0)
+    cpu["within_budget"] = limit <= 0 or cpu["total_share"] <= limit
 
 
 def _verdict(trial: Trial, judge: Judge, launch: list[str]) -> Trial:

@@ -205,7 +205,7 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
         row["within_budget"] = all(_within(row, k, v) for k, v in limits.items())
         loops[f"{proc}/{loop}"] = row
     cpu = _cpu_table(timing, timing_ts, watchers, budgets)
-    realtime = _realtime(timing, timing_ts, budgets)
+    realtime = _realtime(timing, timing_ts, budgets, cpu.get("window"))
     hops = {}
     for hop in budgets.hops:
         a, b = sent.get(hop["from"], {}), sent.get(hop["to"], {})
@@ -234,11 +234,33 @@ def _within(row: dict[str, Any], key: str, limit: float) -> bool:
     return row.get(name, 0.0) <= limit
 
 
-def _span(ts: list[int], values: list[float]) -> tuple[float, float]:
-    """(value difference, wall seconds) between the first and last sample."""
+#: the CPU table's window opens this long after the last process's first TIMING message:
+#: first calls (numba kernels loaded or compiled, first solves, page faults) are start-up
+CPU_SETTLE_S = 2.0
+
+
+def _span(ts: list[int], values: list[float],
+          window: tuple[int, int] | None = None) -> tuple[float, float]:
+    """(value difference, wall seconds) between the first and last sample (of those inside
+    ``window``, log microseconds, when it holds two)."""
+    if window is not None:
+        inside = [i for i, t in enumerate(ts) if window[0] <= t <= window[1]]
+        if len(inside) >= 2:
+            ts, values = [ts[i] for i in inside], [values[i] for i in inside]
     if len(ts) < 2:
         return 0.0, 0.0
     return values[-1] - values[0], (ts[-1] - ts[0]) / 1e6
+
+
+def _common_window(spans: list[tuple[int, int]]) -> tuple[int, int] | None:
+    """The stretch of log time in which every process was up and settled: from the last
+    first sample plus ``CPU_SETTLE_S`` to the first last one (None when shorter than 2 s), so
+    the shares add up to what the machine carried at one time."""
+    if not spans:
+        return None
+    lo = max(a for a, _ in spans) + int(CPU_SETTLE_S * 1e6)
+    hi = min(b for _, b in spans)
+    return (lo, hi) if hi - lo >= 2_000_000 else None
 
 
 def _cpu_table(
@@ -248,15 +270,22 @@ def _cpu_table(
     budgets: Budgets,
 ) -> dict[str, Any]:
     """Per process: share of a core (its CPU seconds over wall seconds, all its threads) and
-    CPU seconds per sim second; the watchers from the supervisor's status; the total."""
+    CPU seconds per sim second; the watchers from the supervisor's status; the total. All over
+    the one window in which every process ran (``_common_window``), start-up left out."""
     rows: dict[str, dict[str, Any]] = {}
     sim_rate = float("nan")  # sim seconds per wall second, to give watchers a per-sim figure
+    series: dict[str, tuple[list[Any], list[int]]] = {}
     for (proc, _loop), msgs in timing.items():
         ts = timing_ts[(proc, _loop)]
         keep = [i for i, m in enumerate(msgs) if m.kind != "main"]
-        if len(keep) < 2 or proc in rows:
-            continue
-        ms, tt = [msgs[i] for i in keep], [ts[i] for i in keep]
+        if len(keep) >= 2 and proc not in series:
+            series[proc] = ([msgs[i] for i in keep], [ts[i] for i in keep])
+    window = _common_window([(tt[0], tt[-1]) for _, tt in series.values()])
+    for proc, (ms, tt) in series.items():
+        if window is not None:
+            inside = [i for i, t in enumerate(tt) if window[0] <= t <= window[1]]
+            if len(inside) >= 2:
+                ms, tt = [ms[i] for i in inside], [tt[i] for i in inside]
         dcpu, dwall = _span(tt, [m.process_cpu_s for m in ms])
         dsim = (ms[-1].header.utime - ms[0].header.utime) / 1e6
         if proc == "sim" and dwall > 0:
@@ -273,7 +302,7 @@ def _cpu_table(
             continue
         # the supervisor's samples cover the whole process tree (a depth renderer too): they
         # win where both exist
-        dcpu, dwall = _span([t for t, _ in samples], [c for _, c in samples])
+        dcpu, dwall = _span([t for t, _ in samples], [c for _, c in samples], window)
         share = dcpu / dwall if dwall > 0 else 0.0
         per_sim = rows[name]["cpu_per_sim_s"] * share / rows[name]["cpu_share"] if (
             name in rows and rows[name]["cpu_share"] > 0) else share / sim_rate
@@ -287,6 +316,8 @@ def _cpu_table(
     return {
         "processes": dict(sorted(rows.items())),
         "total_share": total,
+        "window": window,
+        "window_s": (window[1] - window[0]) / 1e6 if window is not None else float("nan"),
         "total_budget": budgets.cpu_total,
         "within_budget": budgets.cpu_total <= 0 or total <= budgets.cpu_total,
     }
@@ -311,14 +342,27 @@ def _delta_between(t: list[int], v: list[float], t0: int, t1: int) -> float:
     return v[b] - v[a] if b > a else 0.0
 
 
+def _clip(msgs: list[Any], ts: list[int],
+          window: tuple[int, int] | None) -> tuple[list[Any], list[int]]:
+    """The samples inside ``window`` (all of them without one, or when fewer than two are)."""
+    if window is None:
+        return msgs, ts
+    inside = [i for i, t in enumerate(ts) if window[0] <= t <= window[1]]
+    if len(inside) < 2:
+        return msgs, ts
+    return [msgs[i] for i in inside], [ts[i] for i in inside]
+
+
 def _realtime(
     timing: dict[tuple[str, str], list[Any]],
     timing_ts: dict[tuple[str, str], list[int]],
     budgets: Budgets,
+    window: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
     """The sim's real-time factor, states per sim packet, torques per sim step: from the
-    sim's and the estimator's counters, over the span both were running."""
-    by_proc = {p: (msgs, timing_ts[(p, lp)]) for (p, lp), msgs in timing.items()}
+    sim's and the estimator's counters, over the span both were running (inside ``window``,
+    the CPU table's, when given)."""
+    by_proc = {p: _clip(msgs, timing_ts[(p, lp)], window) for (p, lp), msgs in timing.items()}
     out: dict[str, Any] = {}
     sim = by_proc.get("sim")
     if sim is None:
@@ -353,8 +397,10 @@ def print_cpu(cpu: dict[str, Any], out: Any = sys.stdout) -> None:
     if not cpu or not cpu.get("processes"):
         return
     w = out.write
-    w("\nCPU (share of one core = CPU seconds / wall seconds, all threads; per sim second)\n"
-      "---\n")
+    win = cpu.get("window_s", float("nan"))
+    when = f"; the {win:.1f} s all ran, start-up left out" if win == win else ""
+    w(f"\nCPU (share of one core = CPU seconds / wall seconds, all threads; per sim second"
+      f"{when})\n---\n")
     w(f"{'process':<20}{'cpu s':>8}{'wall s':>8}{'share':>8}{'/sim s':>8}  budget\n")
     for name, r in cpu["processes"].items():
         b = r["budget_share"]
@@ -374,7 +420,8 @@ def print_realtime(rt: dict[str, Any], out: Any = sys.stdout) -> None:
     if not rt or len(rt) <= 2:
         return
     w = out.write
-    w("\nReal time (from the sim's and the estimator's counters)\n---------\n")
+    w("\nReal time (from the sim's and the estimator's counters, in the CPU table's window)\n"
+      "---------\n")
     names = {"rtf": "sim real-time factor", "states_per_packet": "states per sim packet",
              "torques_per_step": "torques per sim step"}
     for key, label in names.items():

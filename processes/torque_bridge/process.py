@@ -92,6 +92,8 @@ class TorqueBridgeNode(Node):
             # latency, made exact), so lockstep runs behave as the 2 kHz cycle does
             self.trigger_role = "torque"
         self.unmatched = 0  # lockstep: torques that did not answer the newest state
+        self.fills = 0  # answer_on command: states answered with the held torque
+        self.fills_skipped = 0  # ... and states already overtaken by a later command
         self._lazy: Inbox | None = None  # where the fallback may read the newest state
         self._pending: tuple[list[float], int] | None = None
         self.bridge = TorqueBridge(self.params)
@@ -125,10 +127,13 @@ class TorqueBridgeNode(Node):
                 self._send(ctx, b, cmd_utime, None, int(cmd.state_packet_seq) & 0xFF)
                 self._lazy = None
                 return
-            # a watchdog tick (no command for WATCHDOG_TICK_S): answer a newer state, if any
+            # a state to fill in (``fill_hz``), or a watchdog tick (no command for
+            # WATCHDOG_TICK_S): answer a newer state, if any
             state = inbox.latest("state")
             if state is None or int(state.header.utime) <= self._answered_utime:
+                self.fills_skipped += 1  # a command for a later state went out first
                 return
+            self.fills += 1
             self._answered_utime = int(state.header.utime)
             self._send(ctx, b, self._answered_utime, state, packet_seq_of(state))
             return
@@ -209,6 +214,8 @@ class TorqueBridgeNode(Node):
             "clamps": b.clamp_count,
             "nan_rejects": b.nan_rejects,
             "unmatched": self.unmatched,
+            "fills": self.fills,
+            "fills_skipped": self.fills_skipped,
         }
 
 
