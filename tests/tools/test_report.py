@@ -56,3 +56,19 @@ def test_report_on_missing_log_says_so(tmp_path):
     p = cassie("report", str(tmp_path / "nope.lcm"))
     out, _ = p.communicate(timeout=60)
     assert p.returncode == 2 and "no such log file" in out
+
+
+def test_the_cpu_window_opens_after_the_last_process_settles_and_closes_at_the_first_end():
+    from tools.report import CPU_SETTLE_S, _common_window, _span
+
+    s = 1_000_000
+    spans = [(0, 30 * s), (5 * s, 28 * s), (3 * s, 31 * s)]
+    lo, hi = _common_window(spans)
+    assert lo == 5 * s + int(CPU_SETTLE_S * s) and hi == 28 * s
+    # a process that burnt CPU while starting up is judged on its steady state only
+    ts = [k * s for k in range(31)]
+    cpu = [0.0] * 6 + [10.0 + 0.3 * k for k in range(25)]  # 10 s of start-up work at t = 6 s
+    dcpu, dwall = _span(ts, cpu, (lo, hi))
+    assert abs(dcpu / dwall - 0.3) < 1e-9
+    assert _span(ts, cpu)[0] / _span(ts, cpu)[1] > 0.5
+    assert _common_window([(0, 3 * s), (2 * s, 5 * s)]) is None  # too short to judge

@@ -97,7 +97,8 @@ def run_launch(tree: Path, profile: str, duration_s: float, log_dir: Path,
         d["cpu_s"] += rec.get("cpu_s", 0.0)
         d["alive_s"] = max(d["alive_s"], rec.get("last", rec["first"]) - rec["first"])
     result = next((ln for ln in out.splitlines() if ln.startswith("result:")), "result: ?")
-    robot = next((ln for ln in out.splitlines() if ln.startswith("robot:")), "")
+    # the summary's line (the last one), not an early status table's
+    robot = next((ln for ln in reversed(out.splitlines()) if ln.startswith("robot:")), "")
     report = subprocess.run([sys.executable, "-m", "tools.cli", "report",
                              str(log_dir / "lcm.log")], cwd=tree, env=env, text=True,
                             capture_output=True).stdout
