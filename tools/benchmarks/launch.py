@@ -122,6 +122,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--keep", type=Path, default=None,
                     help="keep each launch's logs and report in this folder")
     ap.add_argument("--json", default=None, help="write the figures as flat JSON")
+    ap.add_argument("--plot", type=Path, default=None,
+                    help="write a PNG bar chart of each process's CPU share, tree beside tree")
     ap.add_argument("launch_args", nargs="*", help="extra `cassie launch` arguments "
                     "(after --), e.g. -- --dashboard")
     args = ap.parse_args(argv)
@@ -175,7 +177,40 @@ def main(argv: list[str] | None = None) -> int:
     print_table("results", [(k, v) for k, v in figures.items() if k.endswith(("result", "robot"))])
     print(f"\nlogs and each tree's own `cassie report`: {work}/<tree><i>/")
     write_json(args.json, "launch", figures)
+    if args.plot is not None:
+        plot_shares(args.plot, figures, list(trees), names, args.baseline)
+        print(f"plot: {args.plot}")
     return 0
+
+
+def plot_shares(path: Path, figures: dict[str, Any], trees: list[str], names: list[str],
+                baseline: str | None) -> None:
+    """Bars of each process's CPU share per tree, the totals in the legend, the 1.6-core
+    budget of two cores in the title (matplotlib, headless: a figure for the docs)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    x = np.arange(len(names))
+    width = 0.8 / len(trees)
+    fig, ax = plt.subplots(figsize=(9, 4.2))
+    for i, tree in enumerate(trees):
+        vals = [figures.get(f"{tree}_{n}_share", 0.0) for n in names]
+        label = (f"{'baseline ' + baseline if tree == 'baseline' and baseline else tree}: "
+                 f"total {figures[f'{tree}_total_share']:.2f} cores")
+        ax.bar(x + (i - (len(trees) - 1) / 2) * width, vals, width, label=label)
+    ax.set_xticks(x, [n.replace("_", "\n") for n in names])
+    ax.set_ylabel("share of one core")
+    ax.set_title("CPU per process, real-time launch of "
+                 f"{figures['profile']} ({figures['duration_s']:g} s; budget: 1.6 of 2 cores)")
+    ax.legend()
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":
