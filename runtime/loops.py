@@ -112,6 +112,8 @@ class LiveRunner:
         self.ports: dict[str, Port] = {}
         self._udp_out: dict[str, UdpSender] = {}
         self._lcm_out: dict[str, str] = {}
+        #: inputs that wake a message-driven loop besides its trigger (``Node.off_slot_wake``)
+        self._fill_ports: list[Port] = []
         thin = (
             round(1e6 / proc.max_rate_hz)
             if proc.max_rate_hz and node.trigger_role and profile.mode == "realtime"
@@ -137,6 +139,8 @@ class LiveRunner:
                     ch.name, None if typ is bytes else typ, policy, wake=wake,
                     slot_us=slot_us, second_half=bool(fill_hz),
                 )
+                if fill_hz:
+                    self._fill_ports.append(self.ports[role])
         for role in node.outputs:
             ch = self._channel(role, proc.outputs, "outputs")
             if ch.udp is not None:
@@ -173,9 +177,6 @@ class LiveRunner:
         for fd in self._fds:
             self._poller.register(fd, select.POLLIN)
         self._udp_in = [p for p in self.ports.values() if isinstance(p, UdpReceiver)]
-        #: inputs that wake a message-driven loop besides its trigger (``Node.off_slot_wake``)
-        self._fill_ports = [self.ports[r] for r in node.off_slot_wake
-                            if r in self.ports and profile.mode == "realtime"]
 
     def _channel(self, role: str, table: dict[str, ChannelConfig], section: str) -> ChannelConfig:
         if role not in table:

@@ -239,14 +239,22 @@ def _within(row: dict[str, Any], key: str, limit: float) -> bool:
 CPU_SETTLE_S = 2.0
 
 
+def _clip(msgs: list[Any], ts: list[int],
+          window: tuple[int, int] | None) -> tuple[list[Any], list[int]]:
+    """The samples inside ``window`` (all of them without one, or when fewer than two are)."""
+    if window is None:
+        return msgs, ts
+    inside = [i for i, t in enumerate(ts) if window[0] <= t <= window[1]]
+    if len(inside) < 2:
+        return msgs, ts
+    return [msgs[i] for i in inside], [ts[i] for i in inside]
+
+
 def _span(ts: list[int], values: list[float],
           window: tuple[int, int] | None = None) -> tuple[float, float]:
     """(value difference, wall seconds) between the first and last sample (of those inside
     ``window``, log microseconds, when it holds two)."""
-    if window is not None:
-        inside = [i for i, t in enumerate(ts) if window[0] <= t <= window[1]]
-        if len(inside) >= 2:
-            ts, values = [ts[i] for i in inside], [values[i] for i in inside]
+    values, ts = _clip(values, ts, window)
     if len(ts) < 2:
         return 0.0, 0.0
     return values[-1] - values[0], (ts[-1] - ts[0]) / 1e6
@@ -282,10 +290,7 @@ def _cpu_table(
             series[proc] = ([msgs[i] for i in keep], [ts[i] for i in keep])
     window = _common_window([(tt[0], tt[-1]) for _, tt in series.values()])
     for proc, (ms, tt) in series.items():
-        if window is not None:
-            inside = [i for i, t in enumerate(tt) if window[0] <= t <= window[1]]
-            if len(inside) >= 2:
-                ms, tt = [ms[i] for i in inside], [tt[i] for i in inside]
+        ms, tt = _clip(ms, tt, window)
         dcpu, dwall = _span(tt, [m.process_cpu_s for m in ms])
         dsim = (ms[-1].header.utime - ms[0].header.utime) / 1e6
         if proc == "sim" and dwall > 0:
@@ -340,17 +345,6 @@ def _delta_between(t: list[int], v: list[float], t0: int, t1: int) -> float:
     b = np.searchsorted(t, t1, side="right") - 1
     a, b = min(max(a, 0), len(t) - 1), min(max(b, 0), len(t) - 1)
     return v[b] - v[a] if b > a else 0.0
-
-
-def _clip(msgs: list[Any], ts: list[int],
-          window: tuple[int, int] | None) -> tuple[list[Any], list[int]]:
-    """The samples inside ``window`` (all of them without one, or when fewer than two are)."""
-    if window is None:
-        return msgs, ts
-    inside = [i for i, t in enumerate(ts) if window[0] <= t <= window[1]]
-    if len(inside) < 2:
-        return msgs, ts
-    return [msgs[i] for i in inside], [ts[i] for i in inside]
 
 
 def _realtime(

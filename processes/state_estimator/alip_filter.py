@@ -66,10 +66,11 @@ class AlipKalman:
         """(1) for a step ``dt``: the transition ``expm(A dt)`` and the process noise ``Q``
         (memoised per microsecond of dt: an ``expm`` costs ~50 us, a lookup ~0.1)."""
         key = round(dt * 1e6)
-        hit = self._discrete.get(key)
-        if hit is None or abs(key * 1e-6 - dt) > 1e-12:
+        exact = abs(key * 1e-6 - dt) <= 1e-12  # a whole number of microseconds: memoisable
+        hit = self._discrete.get(key) if exact else None
+        if hit is None:
             hit = (expm(self.A * dt), np.diag(self._qc * dt))
-            if abs(key * 1e-6 - dt) <= 1e-12 and len(self._discrete) < 64:
+            if exact and len(self._discrete) < 64:
                 self._discrete[key] = hit
         return hit
 
