@@ -15,17 +15,7 @@ from processes.state_estimator.scripted import (  # noqa: F401  (re-exported for
     sim_settings,
     targets,
 )
-
-
-def free_udp_port() -> int:
-    """A UDP port on 127.0.0.1 that nothing is bound to right now."""
-    import socket
-
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = int(s.getsockname()[1])
-    s.close()
-    return port
+from tools.benchmarks.common import free_udp_port  # noqa: F401  (the one helper, for the tests)
 
 
 def live_configs(name: str, module: str, lcm_url: str, inputs: dict[str, Any],

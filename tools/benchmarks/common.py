@@ -9,11 +9,60 @@ from __future__ import annotations
 import json
 import os
 import platform
+import socket
+import subprocess
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+
+#: the repository the benchmarks run from (the tree a ``--baseline`` is read out of)
+REPO = Path(__file__).resolve().parents[2]
+
+
+def free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 that nothing is bound to right now."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = int(s.getsockname()[1])
+    s.close()
+    return port
+
+
+def git_archive(rev: str, paths: Sequence[str] = ()) -> tuple[str, bytes]:
+    """(commit, tar of ``paths``: all of it when empty) of git revision ``rev`` of this
+    repository; SystemExit with git's reason when ``rev`` is not readable."""
+    def git(*args: str) -> bytes:
+        return subprocess.run(["git", "-C", str(REPO), *args], check=True,
+                              capture_output=True).stdout
+
+    try:
+        sha = git("rev-parse", "--verify", f"{rev}^{{commit}}").decode().strip()
+        return sha, git("archive", sha, *paths)
+    except (OSError, subprocess.CalledProcessError) as exc:
+        err = getattr(exc, "stderr", b"") or b""
+        what = ", ".join(paths) or "the tree"
+        raise SystemExit(f"--baseline {rev}: cannot read {what} at that revision from git "
+                         f"({err.decode().strip() or exc}); give a commit of this "
+                         "repository") from exc
+
+
+def extract_tree(rev: str, paths: Sequence[str] = ()) -> Path:
+    """``paths`` (all when empty) of git revision ``rev`` in a temporary folder, removed when
+    the benchmark ends."""
+    import atexit
+    import io
+    import shutil
+    import tarfile
+    import tempfile
+
+    _, tar = git_archive(rev, paths)
+    root = Path(tempfile.mkdtemp(prefix="cassie-bench-baseline-"))
+    atexit.register(shutil.rmtree, root, True)
+    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
+        tf.extractall(root, filter="data")
+    return root
 
 
 def machine_description() -> str:

@@ -31,10 +31,17 @@ from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import DirectInbox, print_table, summarize, write_json
+from tools.benchmarks.common import (
+    REPO,
+    DirectInbox,
+    free_udp_port,
+    git_archive,
+    print_table,
+    summarize,
+    write_json,
+)
 
 PERIOD_MS = 0.5
-REPO = Path(__file__).resolve().parents[2]
 
 
 class _EncodingContext:
@@ -103,22 +110,10 @@ def baseline_root(rev: str) -> Path:
     on-disk cache of its kernels survives from one bench run to the next)."""
     import io
     import os
-    import subprocess
     import tarfile
     import tempfile
 
-    def git(*args: str) -> bytes:
-        return subprocess.run(["git", "-C", str(REPO), *args], check=True,
-                              capture_output=True).stdout
-
-    try:
-        sha = git("rev-parse", "--verify", f"{rev}^{{commit}}").decode().strip()
-        tar = git("archive", sha, "processes/state_estimator")
-    except (OSError, subprocess.CalledProcessError) as exc:
-        err = getattr(exc, "stderr", b"") or b""
-        raise SystemExit(f"--baseline {rev}: cannot read processes/state_estimator at that "
-                         f"revision from git ({err.decode().strip() or exc}); give a commit "
-                         "of this repository") from exc
+    sha, tar = git_archive(rev, ("processes/state_estimator",))
     root = Path(tempfile.gettempdir()) / f"estimator-baseline-{sha}"
     if not (root / "baseline_state_estimator" / ".complete").exists():
         tmp = Path(tempfile.mkdtemp(prefix=f"estimator-baseline-{sha[:12]}-"))
@@ -181,15 +176,6 @@ LIVE_PROFILE = REPO / "hw_config" / "sim.yaml"
 #: stands in for (both on the NUC's CPU, below the estimator's priority)
 LIVE_SUBSCRIBERS = ("osc", "torque_bridge")
 LIVE_WARMUP_S = 0.3  # of each segment, left out (the first TIMING window spans the idle gap)
-
-
-def free_udp_port() -> int:
-    """A UDP port on 127.0.0.1 that nothing is bound to right now."""
-    import socket
-
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _live_profile() -> Any:

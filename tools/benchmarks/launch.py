@@ -15,11 +15,9 @@ launch's result line are kept beside the CPU table.
 from __future__ import annotations
 
 import argparse
-import io
 import os
 import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -27,25 +25,7 @@ from typing import Any
 
 import psutil
 
-from tools.benchmarks.common import print_table, write_json
-
-REPO = Path(__file__).resolve().parents[2]
-
-
-def extract(rev: str) -> Path:
-    """The source tree of git revision ``rev``, in a temporary folder."""
-    try:
-        tar = subprocess.run(["git", "-C", str(REPO), "archive", rev], check=True,
-                             capture_output=True).stdout
-    except (OSError, subprocess.CalledProcessError) as exc:
-        err = getattr(exc, "stderr", b"") or b""
-        raise SystemExit(f"--baseline {rev}: cannot read that revision from git "
-                         f"({err.decode().strip() or exc}); give a commit of this "
-                         "repository") from exc
-    root = Path(tempfile.mkdtemp(prefix="launch-baseline-"))
-    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
-        tf.extractall(root, filter="data")
-    return root
+from tools.benchmarks.common import REPO, extract_tree, print_table, write_json
 
 
 def _name(p: psutil.Process) -> str:
@@ -129,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     trees = {"this": REPO}
     if args.baseline:
-        trees = {"baseline": extract(args.baseline), "this": REPO}
+        trees = {"baseline": extract_tree(args.baseline), "this": REPO}
     work = args.keep or Path(tempfile.mkdtemp(prefix="bench-launch-"))
     runs: dict[str, list[dict[str, Any]]] = {k: [] for k in trees}
     for i in range(args.repeats):

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import DirectInbox, print_table, summarize, write_json
+from tools.benchmarks.common import DirectInbox, extract_tree, print_table, summarize, write_json
 
 DEADLINE_MS = 1.0
 
@@ -144,30 +144,11 @@ def baseline_controller(rev: str) -> Callable[[], Any]:
     """A factory of the ``OscController`` of git revision ``rev``: its ``processes/osc``
     imported beside this tree's as package ``baseline_osc`` (its imports of ``runtime`` resolve
     to this tree's), with that revision's ``hw_config/gains/osc.yaml``."""
-    import atexit
     import importlib
-    import io
-    import shutil
-    import subprocess
     import sys
-    import tarfile
-    import tempfile
-    from pathlib import Path
 
-    repo = Path(__file__).resolve().parents[2]
     gains = "hw_config/gains/osc.yaml"
-    try:
-        tar = subprocess.run(["git", "-C", str(repo), "archive", rev, "processes/osc", gains],
-                             check=True, capture_output=True).stdout
-    except (OSError, subprocess.CalledProcessError) as exc:
-        err = getattr(exc, "stderr", b"") or b""
-        raise SystemExit(f"--baseline {rev}: cannot read processes/osc at that revision from "
-                         f"git ({err.decode().strip() or exc}); give a commit of this "
-                         "repository") from exc
-    root = Path(tempfile.mkdtemp(prefix="osc-baseline-"))
-    atexit.register(shutil.rmtree, root, True)  # the extracted tree, when the bench ends
-    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
-        tf.extractall(root, filter="data")
+    root = extract_tree(rev, ("processes/osc", gains))
     # root/pkg/baseline_osc: the package's parents[2] is root, where its gains file lies
     (root / "pkg").mkdir()
     (root / "processes" / "osc").rename(root / "pkg" / "baseline_osc")

@@ -25,18 +25,14 @@ table puts them side by side with their ratio. Nothing is asserted: the machine 
 from __future__ import annotations
 
 import argparse
-import atexit
 import dataclasses
-import io
 import json
 import os
 import random
-import shutil
 import signal
 import socket
 import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from collections.abc import Sequence
@@ -45,9 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import print_table, write_json
+from tools.benchmarks.common import REPO, extract_tree, free_udp_port, print_table, write_json
 
-REPO = Path(__file__).resolve().parents[2]
 PERIOD_MS = 0.5
 #: what a baseline revision's sim needs from its tree
 SIM_TREE = ("sim", "runtime", "lcmtypes", "hw_config")
@@ -56,36 +51,9 @@ SIM_TREE = ("sim", "runtime", "lcmtypes", "hw_config")
 # -- shared by the live benchmarks (this one and tools.benchmarks.bridge) -------------------
 
 
-def free_udp_port() -> int:
-    """A UDP port on 127.0.0.1 nobody holds now."""
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = int(s.getsockname()[1])
-    s.close()
-    return port
-
-
 def bench_lcm_url() -> str:
     """A multicast port of this benchmark's own (its host domains are the next few ports)."""
     return f"udpm://239.255.76.67:{random.randrange(20000, 60000, 10)}"
-
-
-def extract_tree(rev: str, paths: Sequence[str]) -> Path:
-    """``paths`` of git revision ``rev`` of this repository in a temporary folder (removed
-    when the benchmark ends); SystemExit with git's reason when ``rev`` is not readable."""
-    try:
-        tar = subprocess.run(["git", "-C", str(REPO), "archive", rev, *paths], check=True,
-                             capture_output=True).stdout
-    except (OSError, subprocess.CalledProcessError) as exc:
-        err = getattr(exc, "stderr", b"") or b""
-        raise SystemExit(f"--baseline {rev}: cannot read {', '.join(paths)} at that revision "
-                         f"from git ({err.decode().strip() or exc}); give a commit of this "
-                         "repository") from exc
-    root = Path(tempfile.mkdtemp(prefix="cassie-bench-baseline-"))
-    atexit.register(shutil.rmtree, root, True)
-    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
-        tf.extractall(root, filter="data")
-    return root
 
 
 def use_tree(tree: str | None) -> Path:
