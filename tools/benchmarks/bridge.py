@@ -26,7 +26,6 @@ import argparse
 import dataclasses
 import json
 import os
-import signal
 import socket
 import sys
 import time
@@ -35,20 +34,16 @@ from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import print_table, write_json
+from tools.benchmarks.common import REPO, extract_tree, free_udp_port, until_sigterm
 from tools.benchmarks.sim import (
-    REPO,
     bench_lcm_url,
     child_env,
     collect_timing,
     contend,
-    extract_tree,
-    free_udp_port,
     loop_figures,
-    machine_load,
-    merge_runs,
     pin,
-    side_by_side_rows,
+    report_interleaved,
+    run_interleaved,
     start_child,
     start_contender,
     stop_child,
@@ -87,19 +82,12 @@ def _feeder(seconds: float, cpus: list[int], fifo: int) -> int:
     # a walk's worth of torques: within the limits, a few over them (the bridge clamps)
     torques = (rng.normal(0.0, 0.35, (997, 10)) * limit).tolist()
     vels = rng.normal(0.0, 2.0, (991, 32)).tolist()
-    stop = False
-
-    def on_sig(*_: object) -> None:
-        nonlocal stop
-        stop = True
-
-    signal.signal(signal.SIGTERM, on_sig)
-    print("ready", flush=True)
+    stop = until_sigterm()
     period_ns = int(PERIOD_S * 1e9)
     t0 = time.monotonic_ns()
     end = t0 + int(seconds * 1e9)
     k = 0
-    while not stop:
+    while not stop.is_set():
         target = t0 + k * period_ns
         now = time.monotonic_ns()
         if now < target:
@@ -131,18 +119,11 @@ def _sink(port: int, cpus: list[int]) -> int:
     sock.setblocking(False)
     buf = bytearray(2048)
     n = 0
-    stop = False
-
-    def on_sig(*_: object) -> None:
-        nonlocal stop
-        stop = True
-
-    signal.signal(signal.SIGTERM, on_sig)
-    print("ready", flush=True)
+    stop = until_sigterm()
     period_ns = int(PERIOD_S * 1e9)
     t0 = time.monotonic_ns()
     k = 0
-    while not stop:
+    while not stop.is_set():
         k += 1
         wait = t0 + k * period_ns - time.monotonic_ns()
         if wait > 0:
@@ -292,54 +273,24 @@ def main(argv: list[str] | None = None) -> int:
     feeder_fifo = profile.processes["osc"].rt_priority or 0
     pin(target_cpus, None)  # this process reads TIMING on the target PC's CPU
     base_tree = extract_tree(args.baseline, BRIDGE_TREE) if args.baseline else None
-    variants: list[tuple[str, Path | None]] = [("this", None)]
-    if base_tree is not None:
-        variants.insert(0, ("baseline", base_tree))
-    load0 = machine_load()
-    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _ in variants}
-    for k in range(args.repeats):
-        for name, tree in variants:
-            fig = _run_once(tree, args, nuc_cpus, target_cpus, feeder_fifo)
-            runs[name].append(fig)
-            print(f"run {k + 1}/{args.repeats} {name}: CPU share {fig['cpu_share']:.3f}, tick "
-                  f"CPU median {fig['tick_cpu_median_ms'] * 1e3:.1f} us, p99 "
-                  f"{fig['tick_cpu_p99_ms'] * 1e3:.1f} us, {fig['rate_hz']:.0f} ticks/s",
-                  flush=True)
-    load1 = machine_load()
-    merged = {name: merge_runs(r) for name, r in runs.items()}
+    merged, load0, load1 = run_interleaved(
+        base_tree, args.repeats,
+        lambda tree: _run_once(tree, args, nuc_cpus, target_cpus, feeder_fifo),
+        lambda fig: f"{fig['rate_hz']:.0f} ticks/s")
     figures: dict[str, Any] = {
         "description": f"torque bridge of hw_config/sim.yaml under LiveRunner (CPU {nuc_cpus}, "
-                       f"SCHED_FIFO {bridge.rt_priority}), fed a state then a torque command "
-                       f"every 0.5 ms over LCM from CPU {nuc_cpus}, UDP sink on CPU "
+                       f"SCHED_FIFO {bridge.rt_priority}), fed a state every 0.5 ms and a torque "
+                       f"command at the OSC's rate over LCM from CPU {nuc_cpus}, UDP sink on CPU "
                        f"{target_cpus}; contender sweeping {args.contend:g} MB on the "
                        f"bridge's CPU; {args.repeats} x {args.seconds:g} s",
         "contend_mb": args.contend,
-        "seconds_per_run": args.seconds,
-        "repeats": args.repeats,
-        "load_avg_1min_before": load0["load_avg_1min"],
-        "load_avg_1min_after": load1["load_avg_1min"],
-        "ref_numpy_op_us": max(load0["ref_numpy_op_us"], load1["ref_numpy_op_us"]),
     }
-    for name, fig in merged.items():
-        prefix = "" if name == "this" else "baseline_"
-        figures.update({f"{prefix}{k}": v for k, v in fig.items()})
     this = merged["this"]
-    print_table("torque bridge at 2 kHz under LiveRunner (this tree)",
-                [(label, this.get(key)) for label, key in ROWS if key in this] + [
-                    ("states published / packets received by the sink",
-                     f"{this.get('feeder_published')} / {this.get('sink_received')}"),
-                    ("load average before / after",
-                     f"{load0['load_avg_1min']:.2f} / {load1['load_avg_1min']:.2f}"),
-                    ("tiny numpy op (us)", figures["ref_numpy_op_us"])])
-    if args.baseline:
-        figures["baseline_rev"] = args.baseline
-        for key in ("cpu_share", "tick_cpu_median_ms", "tick_cpu_p99_ms"):
-            if key in this and key in merged["baseline"]:
-                figures[f"{key.removesuffix('_ms')}_ratio"] = this[key] / merged["baseline"][key]
-        print_table(f"side by side: baseline {args.baseline} -> this tree ({args.repeats} "
-                    "interleaved runs each)", side_by_side_rows(merged["baseline"], this, ROWS))
-    write_json(args.json, "bridge", figures)
-    return 0
+    return report_interleaved(
+        "bridge", "torque bridge at 2 kHz under LiveRunner (this tree)", args, figures, merged,
+        (load0, load1), ROWS,
+        [("states published / packets received by the sink",
+          f"{this.get('feeder_published')} / {this.get('sink_received')}")])
 
 
 if __name__ == "__main__":

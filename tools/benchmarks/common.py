@@ -9,9 +9,11 @@ from __future__ import annotations
 import json
 import os
 import platform
+import signal
 import socket
 import subprocess
 import sys
+import threading
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -28,6 +30,15 @@ def free_udp_port() -> int:
     port = int(s.getsockname()[1])
     s.close()
     return port
+
+
+def until_sigterm() -> threading.Event:
+    """For a benchmark's child process: an event that SIGTERM sets (its stop), after telling
+    the parent on stdout that the child is ready."""
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    print("ready", flush=True)
+    return stop
 
 
 def git_archive(rev: str, paths: Sequence[str] = ()) -> tuple[str, bytes]:

@@ -35,13 +35,20 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import REPO, extract_tree, free_udp_port, print_table, write_json
+from tools.benchmarks.common import (
+    REPO,
+    extract_tree,
+    free_udp_port,
+    print_table,
+    until_sigterm,
+    write_json,
+)
 
 PERIOD_MS = 0.5
 #: what a baseline revision's sim needs from its tree
@@ -223,6 +230,62 @@ def side_by_side_rows(base: dict[str, Any], this: dict[str, Any], rows: Sequence
     return out
 
 
+def run_interleaved(base_tree: Path | None, repeats: int,
+                    run_once: Callable[[Path | None], dict[str, Any]],
+                    progress: Callable[[dict[str, Any]], str],
+                    ) -> tuple[dict[str, dict[str, Any]], dict[str, float], dict[str, float]]:
+    """``repeats`` rounds of one run per tree (the baseline first, when there is one, then
+    this tree), so both see the same machine; returns the merged figures per tree and the
+    machine's load before and after."""
+    variants: list[tuple[str, Path | None]] = [("this", None)]
+    if base_tree is not None:
+        variants.insert(0, ("baseline", base_tree))
+    load0 = machine_load()
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _ in variants}
+    for k in range(repeats):
+        for name, tree in variants:
+            fig = run_once(tree)
+            runs[name].append(fig)
+            print(f"run {k + 1}/{repeats} {name}: CPU share {fig['cpu_share']:.3f}, tick "
+                  f"CPU median {fig['tick_cpu_median_ms'] * 1e3:.1f} us, p99 "
+                  f"{fig['tick_cpu_p99_ms'] * 1e3:.1f} us, {progress(fig)}", flush=True)
+    load1 = machine_load()
+    return {name: merge_runs(r) for name, r in runs.items()}, load0, load1
+
+
+def report_interleaved(bench: str, title: str, args: argparse.Namespace,
+                       figures: dict[str, Any], merged: dict[str, dict[str, Any]],
+                       loads: tuple[dict[str, float], dict[str, float]],
+                       rows: Sequence[tuple[str, str]], extra: list[tuple[str, Any]]) -> int:
+    """Print this tree's figures (``rows`` and ``extra``), the side by side with the baseline
+    and its ratios, and write them all (flat, the baseline's prefixed) to ``args.json``."""
+    load0, load1 = loads
+    figures.update({
+        "seconds_per_run": args.seconds,
+        "repeats": args.repeats,
+        "load_avg_1min_before": load0["load_avg_1min"],
+        "load_avg_1min_after": load1["load_avg_1min"],
+        "ref_numpy_op_us": max(load0["ref_numpy_op_us"], load1["ref_numpy_op_us"]),
+    })
+    for name, fig in merged.items():
+        prefix = "" if name == "this" else "baseline_"
+        figures.update({f"{prefix}{k}": v for k, v in fig.items()})
+    this = merged["this"]
+    print_table(title, [(label, this.get(key)) for label, key in rows if key in this] + extra + [
+        ("load average before / after",
+         f"{load0['load_avg_1min']:.2f} / {load1['load_avg_1min']:.2f}"),
+        ("tiny numpy op (us)", figures["ref_numpy_op_us"])])
+    if args.baseline:
+        figures["baseline_rev"] = args.baseline
+        for key in ("cpu_share", "tick_cpu_median_ms", "tick_cpu_p99_ms"):
+            if key in this and key in merged["baseline"]:
+                figures[f"{key.removesuffix('_ms')}_ratio"] = this[key] / merged["baseline"][key]
+        print_table(f"side by side: baseline {args.baseline} -> this tree ({args.repeats} "
+                    "interleaved runs each)", side_by_side_rows(merged["baseline"], this, rows))
+    write_json(args.json, bench, figures)
+    return 0
+
+
 def start_child(role_args: list[str], env: dict[str, str], module: str) -> subprocess.Popen[str]:
     """``python -m module ROLE_ARGS`` as a child of this benchmark: stdout piped (a few
     lines), stderr into a temporary file (a log the child writes never blocks it)."""
@@ -266,15 +329,8 @@ def contend(mb: float, cpus: list[int]) -> int:
     pin(cpus, None)
     os.nice(19)
     a = np.ones(max(1, int(mb * 2**20 / 8)))
-    stop = False
-
-    def on_sig(*_: object) -> None:
-        nonlocal stop
-        stop = True
-
-    signal.signal(signal.SIGTERM, on_sig)
-    print("ready", flush=True)
-    while not stop:
+    stop = until_sigterm()
+    while not stop.is_set():
         a.sum()
     return 0
 
@@ -305,15 +361,8 @@ def _peer(listen_port: int, send_port: int, cpus: list[int], fifo: int) -> int:
     state, cmd, link = OutputPacket(), InputPacket(), LinkCounter()
     buf = bytearray(2048)
     view = memoryview(buf)
-    stop = False
-
-    def on_sig(*_: object) -> None:
-        nonlocal stop
-        stop = True
-
-    signal.signal(signal.SIGTERM, on_sig)
-    print("ready", flush=True)
-    while not stop:
+    stop = until_sigterm()
+    while not stop.is_set():
         try:
             n = sock.recv_into(buf)
         except (TimeoutError, InterruptedError):
@@ -477,21 +526,10 @@ def main(argv: list[str] | None = None) -> int:
     sim_cpus = list(profile.processes["sim"].cpu_affinity or ())
     pin(nuc_cpus, None)  # this process reads TIMING on the NUC's CPU, away from the sim's
     base_tree = extract_tree(args.baseline, SIM_TREE) if args.baseline else None
-    variants: list[tuple[str, Path | None]] = [("this", None)]
-    if base_tree is not None:
-        variants.insert(0, ("baseline", base_tree))
-    load0 = machine_load()
-    runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _ in variants}
-    for k in range(args.repeats):
-        for name, tree in variants:
-            fig = _run_once(tree, args, nuc_cpus, sim_cpus, est.rt_priority or 0)
-            runs[name].append(fig)
-            print(f"run {k + 1}/{args.repeats} {name}: CPU share {fig['cpu_share']:.3f}, tick "
-                  f"CPU median {fig['tick_cpu_median_ms'] * 1e3:.1f} us, p99 "
-                  f"{fig['tick_cpu_p99_ms'] * 1e3:.1f} us, rtf {fig['realtime_factor']:.3f}",
-                  flush=True)
-    load1 = machine_load()
-    merged = {name: merge_runs(r) for name, r in runs.items()}
+    merged, load0, load1 = run_interleaved(
+        base_tree, args.repeats,
+        lambda tree: _run_once(tree, args, nuc_cpus, sim_cpus, est.rt_priority or 0),
+        lambda fig: f"rtf {fig['realtime_factor']:.3f}")
     figures: dict[str, Any] = {
         "description": f"sim of hw_config/sim.yaml under LiveRunner (CPU {sim_cpus}, SCHED_FIFO "
                        f"{profile.processes['sim'].rt_priority}), peer process answering each "
@@ -502,32 +540,13 @@ def main(argv: list[str] | None = None) -> int:
         "terrain": args.terrain,
         "camera": args.camera,
         "contend_mb": args.contend,
-        "seconds_per_run": args.seconds,
-        "repeats": args.repeats,
-        "load_avg_1min_before": load0["load_avg_1min"],
-        "load_avg_1min_after": load1["load_avg_1min"],
-        "ref_numpy_op_us": max(load0["ref_numpy_op_us"], load1["ref_numpy_op_us"]),
     }
-    for name, fig in merged.items():
-        prefix = "" if name == "this" else "baseline_"
-        figures.update({f"{prefix}{k}": v for k, v in fig.items()})
     this = merged["this"]
-    print_table("sim at 2 kHz under LiveRunner (this tree)",
-                [(label, this.get(key)) for label, key in ROWS if key in this] + [
-                    ("packets lost (peer -> sim)", this.get("packets_lost_by_peer")),
-                    ("round trip max (cycles)", this.get("round_trip_max_cycles")),
-                    ("load average before / after",
-                     f"{load0['load_avg_1min']:.2f} / {load1['load_avg_1min']:.2f}"),
-                    ("tiny numpy op (us)", figures["ref_numpy_op_us"])])
-    if args.baseline:
-        figures["baseline_rev"] = args.baseline
-        for key in ("cpu_share", "tick_cpu_median_ms", "tick_cpu_p99_ms"):
-            if key in this and key in merged["baseline"]:
-                figures[f"{key.removesuffix('_ms')}_ratio"] = this[key] / merged["baseline"][key]
-        print_table(f"side by side: baseline {args.baseline} -> this tree ({args.repeats} "
-                    "interleaved runs each)", side_by_side_rows(merged["baseline"], this, ROWS))
-    write_json(args.json, "sim", figures)
-    return 0
+    return report_interleaved(
+        "sim", "sim at 2 kHz under LiveRunner (this tree)", args, figures, merged,
+        (load0, load1), ROWS,
+        [("packets lost (peer -> sim)", this.get("packets_lost_by_peer")),
+         ("round trip max (cycles)", this.get("round_trip_max_cycles"))])
 
 
 if __name__ == "__main__":
