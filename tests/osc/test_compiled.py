@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 
 from processes.osc.model import CassieModel
+from tools.benchmarks.osc import tight_optimum
 
 
 def _states(q_stand: np.ndarray, n: int = 4) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -167,20 +168,6 @@ def test_compiled_condensation_matches_dense_reference(sim_model, q_stand):
             assert np.array_equal(P, P.T)
 
 
-def _tight_piqp(P, c, lo, hi, G) -> np.ndarray | None:
-    """piqp converged to 1e-11 (None when it does not converge that far)."""
-    import piqp
-
-    s = piqp.DenseSolver()
-    st = s.settings
-    st.eps_abs = st.eps_rel = st.eps_duality_gap_abs = st.eps_duality_gap_rel = 1e-11
-    st.max_iter = 500
-    st.verbose = False
-    s.setup(np.asfortranarray(P), c, None, None, np.asfortranarray(G), np.full(len(G), -np.inf),
-            np.zeros(len(G)), lo, hi)
-    return s.result.x.copy() if s.solve().value == 1 else None
-
-
 def _kkt_residual(P, c, lo, hi, G, x) -> tuple[float, float, int]:
     """Independent optimality check of x: (largest constraint violation, stationarity
     residual relative to the size of the terms, active constraints), the multipliers of
@@ -237,7 +224,7 @@ def test_osc_qp_solution_is_the_optimum_of_its_qp_with_limits_active(q_stand):
         viol, stat, na = _kkt_residual(P, c, lo, hi, G, x)
         assert viol <= 1e-9 and stat <= 1e-12, (viol, stat)
         n_active += na
-        ref = _tight_piqp(P, c, lo, hi, G)  # (it fails on a zero force cap: lo = hi = 0)
+        ref = tight_optimum(P, c, lo, hi, G)  # (it fails on a zero force cap: lo = hi = 0)
         if ref is not None:
             compared += 1
             cost = 0.5 * x @ P @ x + c @ x

@@ -250,7 +250,7 @@ def side_by_side(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, 
     return out
 
 
-def _tight_optimum(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+def tight_optimum(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                    G: np.ndarray) -> np.ndarray | None:
     """The QP min 1/2 x'Px + c'x, lo <= x <= hi, G x <= 0 by piqp converged to 1e-11 (None
     when it does not get there)."""
@@ -293,6 +293,22 @@ def _gap(P: np.ndarray, c: np.ndarray, x: np.ndarray, ref: np.ndarray) -> tuple[
     return float(np.abs(x[:10] - ref[:10]).max()), float((cost - cost_ref) / abs(cost_ref))
 
 
+def _versus_optimum(solved: list[tuple[np.ndarray, ...]]
+                    ) -> tuple[list[float], list[float], list[float], list[float]]:
+    """For each solved QP (P, c, lo, hi, G, x): x's KKT residual, and where piqp converged
+    tightly, the torque difference and cost excess against that optimum and its residual."""
+    du, ex, kkt, kkt_ref = [], [], [], []
+    for P, c, lo, hi, G, x in solved:
+        kkt.append(_kkt(P, c, lo, hi, G, x))
+        ref = tight_optimum(P, c, lo, hi, G)
+        if ref is not None:
+            d, e = _gap(P, c, x, ref)
+            du.append(d)
+            ex.append(e)
+            kkt_ref.append(_kkt(P, c, lo, hi, G, ref))
+    return du, ex, kkt, kkt_ref
+
+
 def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, Any]]],
                baseline: Callable[[], Any] | None) -> dict[str, Any]:
     """Untimed: each QP answer against the optimum of the same QP found by a tightly
@@ -308,20 +324,14 @@ def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, An
     rows: list[tuple[str, object]] = []
     for kind, states in runs.items():
         osc = OscController()
-        du, ex, kkt, kkt_ref = [], [], [], []
+        solved: list[tuple[np.ndarray, ...]] = []
         for t, q, v, plan, cmd in states:
             _, dbg = osc.update(t, q, v, plan, cmd)
             if dbg.mode == SAFE or dbg.qp_status != 1:
                 continue
-            P, c, lo, hi, G = osc.qp.last_problem()
             x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
-            kkt.append(_kkt(P, c, lo, hi, G, x))
-            ref = _tight_optimum(P, c, lo, hi, G)
-            if ref is not None:
-                d, e = _gap(P, c, x, ref)
-                du.append(d)
-                ex.append(e)
-                kkt_ref.append(_kkt(P, c, lo, hi, G, ref))
+            solved.append((*osc.qp.last_problem(), x))
+        du, ex, kkt, kkt_ref = _versus_optimum(solved)
         out[f"{kind}_this_vs_optimum_ticks"] = len(du)
         out[f"{kind}_this_vs_optimum_torque_max_nm"] = float(max(du, default=0.0))
         out[f"{kind}_this_vs_optimum_cost_excess_max_ratio"] = float(max(ex, default=0.0))
@@ -355,14 +365,7 @@ def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, An
             _replay(states, baseline)
         finally:
             bqp._Solver.solve = solve
-        du, ex, kkt = [], [], []
-        for P, c, lo, hi, G, x in seen:
-            kkt.append(_kkt(P, c, lo, hi, G, x))
-            ref = _tight_optimum(P, c, lo, hi, G)
-            if ref is not None:
-                d, e = _gap(P, c, x, ref)
-                du.append(d)
-                ex.append(e)
+        du, ex, kkt, _ = _versus_optimum(seen)
         out[f"{kind}_baseline_piqp_vs_optimum_ticks"] = len(du)
         if du:
             out[f"{kind}_baseline_piqp_vs_optimum_torque_median_nm"] = float(np.median(du))
