@@ -86,39 +86,34 @@ def test_garbage_on_the_port_is_counted_not_raised(url: str) -> None:
     assert rx.bad >= 4
 
 
-def test_the_kernel_thins_a_rate_limited_channel_to_the_first_half_of_each_slot(url: str):
+def _states_through(rx: UdpmReceiver, url: str, second_half: bool) -> tuple[list[int], list[int]]:
+    """Publish 2 kHz states across the wrap of utime's low 32 bits (71.6 min of sim time) to
+    ``rx`` subscribed with 1 ms slot thinning; (utimes received, utimes sent)."""
     from lcmtypes import robot_state_t
 
-    rx = UdpmReceiver(url)
     got: list[int] = []
     rx.subscribe("CASSIE_STATE", lambda c, d: got.append(robot_state_t.decode(d).header.utime),
-                 slot_us=1000)
+                 slot_us=1000, second_half=second_half)
     tx = lcm.LCM(url + "?ttl=0")
-    # 2 kHz states, across the wrap of utime's low 32 bits (71.6 min of sim time)
     utimes = [2**32 - 3000 + 500 * k for k in range(20)]
     for u in utimes:
         m = robot_state_t()
         m.header.utime = u
         tx.publish("CASSIE_STATE", m.encode())
     _drain(rx)
+    return got, utimes
+
+
+def test_the_kernel_thins_a_rate_limited_channel_to_the_first_half_of_each_slot(url: str):
+    rx = UdpmReceiver(url)
+    got, utimes = _states_through(rx, url, second_half=False)
     assert got == utimes[0::2]  # every other one, none twice, the alternation kept
     assert rx.received == 10
 
 
 def test_the_kernel_passes_the_other_half_of_each_slot_to_a_loop_that_fills_it_in(url: str):
-    from lcmtypes import robot_state_t
-
     rx = UdpmReceiver(url)
-    got: list[int] = []
-    rx.subscribe("CASSIE_STATE", lambda c, d: got.append(robot_state_t.decode(d).header.utime),
-                 slot_us=1000, second_half=True)
-    tx = lcm.LCM(url + "?ttl=0")
-    utimes = [2**32 - 3000 + 500 * k for k in range(20)]
-    for u in utimes:
-        m = robot_state_t()
-        m.header.utime = u
-        tx.publish("CASSIE_STATE", m.encode())
-    _drain(rx)
+    got, utimes = _states_through(rx, url, second_half=True)
     assert got == utimes[1::2]  # exactly the states the first-half loop does not get
 
 
