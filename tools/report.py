@@ -133,29 +133,23 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
         if cls is None:
             undecodable[event.channel] += 1
             continue
+        if cls not in (lcmtypes.loop_timing_t, lcmtypes.supervisor_status_t) and (
+                event.channel not in hop_ends):
+            continue  # counted, never decoded
+        try:
+            m = cls.decode(event.data)
+        except Exception:
+            undecodable[event.channel] += 1
+            continue
         if cls is lcmtypes.loop_timing_t:
-            try:
-                m = cls.decode(event.data)
-            except Exception:
-                undecodable[event.channel] += 1
-                continue
             timing[(m.process, m.loop)].append(m)
             timing_ts[(m.process, m.loop)].append(event.timestamp)
         elif cls is lcmtypes.supervisor_status_t:
-            try:
-                st = cls.decode(event.data)
-            except Exception:
-                undecodable[event.channel] += 1
-                continue
-            for ps in st.processes:
+            for ps in m.processes:
                 if ps.cpu_s > 0:
                     watchers[ps.name].append((event.timestamp, ps.cpu_s))
-        elif event.channel in hop_ends:
-            try:
-                h = cls.decode(event.data).header
-            except Exception:
-                undecodable[event.channel] += 1
-                continue
+        else:
+            h = m.header
             sent[event.channel].setdefault(int(h.utime), int(h.send_mono_ns))
     channels = {}
     for ch, ts in sorted(arrivals.items()):
