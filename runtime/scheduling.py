@@ -39,6 +39,20 @@ def apply_scheduling(proc: Any, realtime: bool = False) -> list[str]:
     return notes
 
 
+def pin_to_supervisor_host(profile: Any) -> tuple[int, ...] | None:
+    """Pin this process (best-effort) to the CPUs of the host the supervisor and the tools
+    stand on (``profile.supervisor_host``: the laptop), never to the NUC's; returns those
+    CPUs (None when that host names none), for the helpers to be pinned to as well."""
+    home = profile.hosts.get(profile.supervisor_host)
+    cpus = home.cpus if home is not None else None
+    if cpus:
+        try:
+            os.sched_setaffinity(0, cpus)
+        except OSError:
+            pass
+    return cpus
+
+
 def _rt_priority(prio: int | None) -> list[str]:
     notes = []
     if prio is not None:

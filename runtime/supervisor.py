@@ -40,7 +40,7 @@ from runtime.bus import Bus
 from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
-from runtime.scheduling import describe
+from runtime.scheduling import describe, pin_to_supervisor_host
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 FAILED_STATES = ("failed", "crash_loop")
@@ -149,14 +149,9 @@ class Supervisor:
         self.order = check_depends(profile)
         self.children = {name: Child(profile.processes[name]) for name in self.order}
         self.bus = Bus.for_profile(profile, source="supervisor", recv_buf_size=1 << 20)
-        home = profile.hosts.get(profile.supervisor_host)
-        self.home_cpus = home.cpus if home is not None else None
         self._all_cpus = tuple(sorted(os.sched_getaffinity(0)))  # children start unpinned
-        if self.home_cpus:  # the supervisor runs "on the laptop", as procman's sheriff would
-            try:
-                os.sched_setaffinity(0, self.home_cpus)
-            except OSError:
-                pass
+        # the supervisor runs "on the laptop", as procman's sheriff would
+        self.home_cpus = pin_to_supervisor_host(profile)
         if log_lcm:
             # every domain (each host's bus and the network) into one log, read in batches so
             # that recording never wakes anyone's CPU per message (tools/logger.py)

@@ -37,6 +37,7 @@ from runtime.config import HW_CONFIG_DIR, load_profile
 from runtime.config_types import Profile
 from runtime.harness import Binding, Harness
 from runtime.node import Node
+from runtime.scheduling import pin_to_supervisor_host
 from tools.benchmarks.common import print_table, write_json
 from tools.report import analyse, load_budgets, print_cpu, print_loops, print_realtime
 
@@ -285,12 +286,7 @@ def run_live_trial(
         operator = Operator(vx)
         # this process is the operator's radio and the judge: a laptop tool, on its CPUs (as
         # the supervisor), never on the NUC's, and its CPU goes into the table as a watcher's
-        home = profile.hosts.get(profile.supervisor_host or "laptop")
-        if home is not None and home.cpus:
-            try:
-                os.sched_setaffinity(0, home.cpus)
-            except OSError:
-                pass
+        pin_to_supervisor_host(profile)
         bus = Bus(profile.lcm_url, source="operator")
         newest: list[Any] = [None]
 
