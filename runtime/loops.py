@@ -385,7 +385,9 @@ class LiveRunner:
                         else:
                             self.timer.rate_skipped_total += 1
                 last_trigger_ns = time.monotonic_ns()
-            fill = next((p for p in self._fill_ports if p.fresh), None)
+            fill = None
+            if self._fill_ports:  # (most loops have none: no generator per message for them)
+                fill = next((p for p in self._fill_ports if p.fresh), None)
             if fill is not None:
                 # a message to fill in (``Node.off_slot_wake``), after the trigger's tick if both
                 # came: the node ticks with no trigger, timed like any tick of the loop
