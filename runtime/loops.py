@@ -238,6 +238,7 @@ class LiveRunner:
         self._install_signals()
         _set_timer_slack_ns(1000)
         self.node.setup(self.ctx)
+        self.node.warm_up()
         if self.proc.gc == "freeze":
             gc.collect()
             gc.freeze()

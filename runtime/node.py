@@ -141,6 +141,12 @@ class Node:
     def setup(self, ctx: Context) -> None:
         """Called once before the first tick."""
 
+    def warm_up(self) -> None:
+        """Live only, after ``setup`` and before the loop starts (and before the process is
+        ready): make the first real ticks as fast as the later ones, e.g. run every compiled
+        kernel once. The harness skips it: there, time is simulated and results must not
+        depend on it."""
+
     def tick(self, ctx: Context, inbox: Inbox) -> None:  # pragma: no cover - abstract
         """One step of the algorithm: read ``inbox``, ``ctx.publish`` the outputs."""
         raise NotImplementedError
