@@ -59,7 +59,8 @@ class OscNode(Node):
 
     def warm_up(self) -> None:
         """Run a throwaway controller through standing and walking on the IK standing pose
-        (no physics: the state stays put; plans from the ALIP stand-in planner), so every
+        (no physics: the state stays put; plans from the ALIP stand-in planner, encoded and
+        decoded as the bus delivers them), so every
         kernel of both paths is compiled, or loaded from numba's cache, before the process is
         ready. Measured on a fresh clone without it: the first walking tick took 0.45 s, the
         bridge's watchdog tripped and Cassie fell as the holder let go. ~0.3 s when cached."""
@@ -73,11 +74,13 @@ class OscNode(Node):
         planner = StandInPlanner(CassieModel(model.m), vdes=(0.3, 0.0))
         walk = command_t()
         walk.mode = 0
+        walk = command_t.decode(walk.encode())
         plan = None
         for k in range(WARM_UP_TICKS):  # 0.25 s standing, then walking through every phase
             t = k * 0.0005
             if t >= 0.25 and k % 10 == 0:
-                plan = planner.plan(t, q, v)
+                # as it comes off the bus (tuples, not lists): the kernels the live plans need
+                plan = mpfc_output_t.decode(planner.plan(t, q, v).encode())
             ctrl.update(t, q, v, plan, walk)
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:
