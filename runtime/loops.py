@@ -38,7 +38,7 @@ from runtime.bus import Bus, Subscription
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.node import Node, OutputGates, SlotGate
 from runtime.port_buffer import PortInbox
-from runtime.scheduling import apply_scheduling
+from runtime.scheduling import apply_scheduling, lock_memory
 from runtime.timing import LoopTimer
 from runtime.udp import UdpReceiver, UdpSender
 
@@ -243,6 +243,8 @@ class LiveRunner:
             gc.collect()
             gc.freeze()
             gc.disable()
+        note = lock_memory()  # no page faults in the loop (a page out while idle, say)
+        (log.warning if "failed" in note else log.info)(note)
         # real-time priority only now: set-up work (numba, models) must not starve a core
         for note in apply_scheduling(self.proc, realtime=True):
             (log.warning if "failed" in note else log.info)(note)

@@ -39,6 +39,23 @@ def apply_scheduling(proc: Any, realtime: bool = False) -> list[str]:
     return notes
 
 
+def lock_memory() -> str:
+    """Lock all of this process's memory, now and to come, into RAM (``mlockall``): a loop
+    must never wait for a page to come back. Measured on this VM, whose kernel pages idle
+    memory out on its own (DAMON ``pageout``): the first ticks of the OSC and the bridge after
+    a long start-up cost ~220 ms of CPU each in page faults, and Cassie fell as the holder let
+    go. Best-effort; returns what happened."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        if libc.mlockall(3) == 0:  # MCL_CURRENT | MCL_FUTURE
+            return "memory locked (mlockall)"
+        return f"memory lock failed ({os.strerror(ctypes.get_errno())})"
+    except OSError as exc:
+        return f"memory lock failed ({exc})"
+
+
 def pin_to_supervisor_host(profile: Any) -> tuple[int, ...] | None:
     """Pin this process (best-effort) to the CPUs of the host the supervisor and the tools
     stand on (``profile.supervisor_host``: the laptop), never to the NUC's; returns those
