@@ -206,9 +206,7 @@ class TorqueBridge:
             self.source = (SOURCE_WATCHDOG_ZERO if p.fallback == "zero"
                            else SOURCE_WATCHDOG_DAMPING)
         if kind == _OUT_DAMPING:
-            mv = motor_vel() if callable(motor_vel) else motor_vel
-            mv = np.ascontiguousarray(np.broadcast_to(np.asarray(mv, dtype=float),
-                                                      (NUM_MOTORS,)))
+            mv = _motor_vel_array(motor_vel() if callable(motor_vel) else motor_vel)
         else:
             mv = self._nan_vel  # not read
         self.clamp_count += _torques(kind, self.command, self.kd, mv, self.limit, self.torque,
@@ -275,6 +273,12 @@ def _torques(kind: int, command: np.ndarray, kd: np.ndarray, motor_vel: np.ndarr
     return clipped
 
 
+def _motor_vel_array(mv: Any) -> np.ndarray:
+    """The damping fallback's motor velocities as the kernel takes them (a read-only view when
+    broadcast: a type of its own for numba, so ``_warm_kernels`` makes it this same way)."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(mv, dtype=float), (NUM_MOTORS,)))
+
+
 def _warm_kernels(b: TorqueBridge) -> None:
     """Compile (or load from numba's cache) the kernels for the arguments the node passes
     (a decoded message's tuple, arrays, a packet's field), before the first command."""
@@ -285,3 +289,7 @@ def _warm_kernels(b: TorqueBridge) -> None:
     _take_command(scratch, scratch.copy(), scratch.copy())
     for out in (b._no_out, InputPacket().torque):
         _torques(_OUT_ZERO, scratch, b.kd, b._nan_vel, b.limit, scratch.copy(), out)
+        # the damping fallback's velocities (measured on a cold cache: its first watchdog
+        # trip compiled this signature for 0.2 s, in the live stack, as the holder let go)
+        _torques(_OUT_DAMPING, scratch, b.kd, _motor_vel_array(scratch), b.limit,
+                 scratch.copy(), out)
