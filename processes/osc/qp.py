@@ -341,6 +341,10 @@ class OscQP:
             status, iters = 1, 0
         else:
             status, iters, x = solver.solve(P.T, c)  # P symmetric: P.T is its F-ordered view
+            # piqp's answer is a view of its own memory: as a plain C array it takes the one
+            # _store signature compiled at construction (else the first piqp tick of a live
+            # run compiled another, 0.22 s, as the holder let go; measured on a fresh clone)
+            x = np.require(x, np.float64, ("C", "W"))
         t2 = time.perf_counter()
         self.last_status = status
         # a solution becomes u, lambda (all 4 points) and the previous-tick terms
