@@ -243,8 +243,11 @@ class LiveRunner:
             gc.collect()
             gc.freeze()
             gc.disable()
-        note = lock_memory()  # no page faults in the loop (a page out while idle, say)
-        (log.warning if "failed" in note else log.info)(note)
+        if self.proc.rt_priority is not None or self.proc.nice is not None:
+            # a loop scheduled for real time: no page faults in it (a page out while idle,
+            # say); not a loop run inside another program (a test's, a benchmark's)
+            note = lock_memory()
+            (log.warning if "failed" in note else log.info)(note)
         # real-time priority only now: set-up work (numba, models) must not starve a core
         for note in apply_scheduling(self.proc, realtime=True):
             (log.warning if "failed" in note else log.info)(note)
