@@ -38,6 +38,7 @@ log = logging.getLogger(__name__)
 STATUS_INITIALIZING = K.STATUS_INITIALIZING  # first packets: the filter is converging
 STATUS_NO_CONTACT = K.STATUS_NO_CONTACT  # neither foot in contact: position is IMU dead reckoning
 STATUS_PACKET_GAP = K.STATUS_PACKET_GAP  # packets were lost just before this one
+STATUS_STILL = K.STATUS_STILL  # at rest with no foot down: zero-velocity updates
 #: sine of the foot pitch above which the heel or toe bears the load, and back to mid-foot
 PITCH_ON, PITCH_OFF = K.PITCH_ON, K.PITCH_OFF
 #: consecutive packets whose time does not advance before the target PC counts as restarted
@@ -167,6 +168,7 @@ class CassieEstimator:
         self._foot_speed = np.zeros(2)  # each foot's speed in the world, m/s
         self._quat = np.zeros(4)
         self._vb = np.zeros(3)
+        self._still = False  # the reference path's last at-rest verdict (a status bit)
         self._bind()
         self.initialized = False
         self.updates = 0
@@ -249,6 +251,10 @@ class CassieEstimator:
         C[K.C_G:K.C_G + 3] = f.g
         C[K.C_VAR_G], C[K.C_VAR_A], C[K.C_VAR_C] = f._var_g, f._var_a, f._var_c
         C[K.C_VAR_S], C[K.C_KIN_VAR] = f._var_s, f._kin_var
+        C[K.C_STILL_GYRO], C[K.C_STILL_ACCEL] = p.still.gyro_rad_s, p.still.accel_m_s2
+        C[K.C_STILL_AFTER_US] = p.still.after_s * 1e6
+        C[K.C_STILL_VAR] = p.still.velocity_std_m_s ** 2
+        N[K.I_STILL_SINCE] = -1
         C[K.C_GAIN:K.C_GAIN + 2] = c._gain
         C[K.C_ON_N], C[K.C_OFF_N] = p.contact.on_n, p.contact.off_n
         C[K.C_TD_SPEED] = p.contact.touchdown_speed_mps
@@ -439,6 +445,12 @@ class CassieEstimator:
             elif not flags[k] and f.contact[k]:
                 f.liftoff(k)
         f.correct(h)
+        # at rest with no foot down (the holder): a zero-velocity update (kernels._still)
+        C = self._args[3]
+        self._still = K._still(self._N, C, utime, bool(f.contact[0] or f.contact[1]),
+                               pkt.imu_gyro, pkt.imu_accel)
+        if self._still:
+            f.correct_still(C[K.C_STILL_VAR])
         self._fill(pkt, gap, alip)
         self.updates += 1
         return self.est
@@ -472,7 +484,7 @@ class CassieEstimator:
         self.alip.stance = -1
         self.est.alip_stance = -1
         n = self._N  # the same for the fused step's copies of the last two
-        n[K.I_ALIP_STANCE] = n[K.I_EST_STANCE] = -1
+        n[K.I_ALIP_STANCE] = n[K.I_EST_STANCE] = n[K.I_STILL_SINCE] = -1
         n[K.I_DIRTY] = 1
         self.updates = 0
         self.initialized = True
@@ -518,6 +530,8 @@ class CassieEstimator:
             status |= STATUS_NO_CONTACT
         if gap:
             status |= STATUS_PACKET_GAP
+        if self._still:
+            status |= STATUS_STILL
         est.status = status
         if not alip:
             return  # CoM, momentum and the ALIP filter run at the laptop's rate

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels import DIM, _correct, _propagate
+from .kernels import DIM, _correct, _correct_still, _propagate
 
 #: state slices (rows of the 15-dim error)
 ROT, VEL, POS = slice(0, 3), slice(3, 6), slice(6, 9)
@@ -50,6 +50,19 @@ class InEKFNoise:
     init_rot: float = 0.02  # rad
     init_vel: float = 0.1  # m/s
     init_pos: float = 0.01  # m
+
+
+@dataclass(frozen=True)
+class StillParams:
+    """Zero-velocity updates while the robot hangs at rest with no foot down (the start-up
+    holder, a gantry): ``kernels._correct_still``. At rest means every IMU sample within
+    ``gyro_rad_s`` of no rotation and ``accel_m_s2`` of a specific force of g, for
+    ``after_s``; the update then measures the body velocity as 0 with ``velocity_std_m_s``."""
+
+    gyro_rad_s: float = 0.1
+    accel_m_s2: float = 0.5
+    after_s: float = 0.25
+    velocity_std_m_s: float = 0.01
 
 
 def skew(w: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -83,11 +96,12 @@ class ContactInEKF:
         self._warm_up()
 
     def _warm_up(self) -> None:
-        """Compile (or load from the on-disk cache) both kernels now, not on the first packet."""
+        """Compile (or load from the on-disk cache) the kernels now, not on the first packet."""
         R, v, p, d, P = np.eye(3), np.zeros(3), np.zeros(3), np.zeros((2, 3)), np.eye(DIM)
         _propagate(R, v, p, d, P, np.zeros(3), np.zeros(3), 5e-4, self.g, 1.0, 1.0, 1.0, 1.0,
                    self._scratch)
         _correct(R, v, p, d, P, np.zeros((2, 3)), True, False, 1e-4)
+        _correct_still(R, v, p, d, P, 1e-4)
 
     # -- set-up -----------------------------------------------------------------------------
     def reset(self, R: np.ndarray, v: np.ndarray, p: np.ndarray) -> None:
@@ -146,3 +160,7 @@ class ContactInEKF:
         c0, c1 = self.contact
         if c0 or c1:
             _correct(self.R, self.v, self.p, self.d, self.P, h, c0, c1, self._kin_var)
+
+    def correct_still(self, velocity_var: float) -> None:
+        """Zero-velocity update (the robot at rest with no foot down): ``R^T v`` measured 0."""
+        _correct_still(self.R, self.v, self.p, self.d, self.P, velocity_var)

@@ -153,27 +153,11 @@ def _propagate(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np
 
 
 @_fjit
-def _correct(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np.ndarray,
-             h: np.ndarray, c0: bool, c1: bool, kin_var: float) -> None:
-    """Leg-kinematics update (Hartley Sec. 6, eq. (36)-(40)) for the feet in contact."""
-    feet = [k for k, on in ((0, c0), (1, c1)) if on]  # measured feet, in stacking order
-    m = 3 * len(feet)
-    PHt = np.empty((DIM, m))  # P H^T, H = [0, 0, -I, +I at d_k] per contact foot
-    z = np.empty(m)  # innovation R h_k + p - d_k, stacked
-    for b, k in enumerate(feet):
-        f, col = 9 + 3 * k, 3 * b
-        for j in range(3):
-            for i in range(DIM):
-                PHt[i, col + j] = P[i, f + j] - P[i, 6 + j]
-            z[col + j] = (R[j, 0] * h[k, 0] + R[j, 1] * h[k, 1] + R[j, 2] * h[k, 2]
-                          + p[j] - d[k, j])
-    S = np.empty((m, m))  # H P H^T + N, N = s_k^2 I (R N R^T = N: isotropic)
-    for b, k in enumerate(feet):
-        f, col = 9 + 3 * k, 3 * b
-        for j in range(3):
-            for c in range(m):
-                S[col + j, c] = PHt[f + j, c] - PHt[6 + j, c]
-            S[col + j, col + j] += kin_var
+def _apply_update(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np.ndarray,
+                  PHt: np.ndarray, S: np.ndarray, z: np.ndarray) -> None:
+    """The InEKF correction given ``P H^T``, the innovation covariance ``S`` and the innovation
+    ``z`` (Hartley eq. (37)-(39)): gain, the group update ``X+ = exp(K z) X``, ``P+``."""
+    m = z.shape[0]
     # K = P H^T S^-1 by Cholesky (S = L L^T, symmetric positive definite): K^T = S^-1 PHt^T
     L = np.zeros((m, m))
     for j in range(m):
@@ -236,6 +220,64 @@ def _correct(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np.n
             a = 0.5 * (P[i, j] + P[j, i] - acc)
             P[i, j] = a
             P[j, i] = a
+
+
+@_fjit
+def _correct(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np.ndarray,
+             h: np.ndarray, c0: bool, c1: bool, kin_var: float) -> None:
+    """Leg-kinematics update (Hartley Sec. 6, eq. (36)-(40)) for the feet in contact."""
+    feet = [k for k, on in ((0, c0), (1, c1)) if on]  # measured feet, in stacking order
+    m = 3 * len(feet)
+    PHt = np.empty((DIM, m))  # P H^T, H = [0, 0, -I, +I at d_k] per contact foot
+    z = np.empty(m)  # innovation R h_k + p - d_k, stacked
+    for b, k in enumerate(feet):
+        f, col = 9 + 3 * k, 3 * b
+        for j in range(3):
+            for i in range(DIM):
+                PHt[i, col + j] = P[i, f + j] - P[i, 6 + j]
+            z[col + j] = (R[j, 0] * h[k, 0] + R[j, 1] * h[k, 1] + R[j, 2] * h[k, 2]
+                          + p[j] - d[k, j])
+    S = np.empty((m, m))  # H P H^T + N, N = s_k^2 I (R N R^T = N: isotropic)
+    for b, k in enumerate(feet):
+        f, col = 9 + 3 * k, 3 * b
+        for j in range(3):
+            for c in range(m):
+                S[col + j, c] = PHt[f + j, c] - PHt[6 + j, c]
+            S[col + j, col + j] += kin_var
+    _apply_update(R, v, p, d, P, PHt, S, z)
+
+
+@_fjit
+def _correct_still(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P: np.ndarray,
+                   var: float) -> None:
+    """Zero-velocity update of a robot held still with no foot on the ground (hung from the
+    start-up holder or a gantry): the body-frame IMU velocity ``R^T v`` is measured as 0, a
+    right-invariant observation like the leg kinematics (``Y = X^-1 b``, ``b`` the velocity
+    column), so ``H = [0, I, 0, 0, 0]`` is constant and the innovation is ``R 0 - v = -v``.
+    Without it the dead-reckoned covariance grows as t^4 while the robot hangs (position
+    std ~40 m after 20 s) and the first touchdown after a long hold throws the estimate
+    metres off (a fresh clone's launch, where the OSC compiles for a minute, fell so)."""
+    PHt = np.empty((DIM, 3))
+    z = np.empty(3)
+    S = np.empty((3, 3))
+    for j in range(3):
+        for i in range(DIM):
+            PHt[i, j] = P[i, 3 + j]
+        z[j] = -v[j]
+    for i in range(3):
+        for j in range(3):
+            S[i, j] = PHt[3 + i, j]
+        S[i, i] += var
+    _apply_update(R, v, p, d, P, PHt, S, z)
+
+
+@_jit
+def still_without_contact(gyro: np.ndarray, accel: np.ndarray, g: float, gyro_max: float,
+                          accel_tol: float) -> bool:
+    """Whether one IMU sample reads at rest: no rotation and a specific force of ``g``."""
+    w2 = gyro[0] * gyro[0] + gyro[1] * gyro[1] + gyro[2] * gyro[2]
+    a = math.sqrt(accel[0] * accel[0] + accel[1] * accel[1] + accel[2] * accel[2])
+    return w2 < gyro_max * gyro_max and abs(a - g) < accel_tol
 
 
 # -- leg kinematics (processes/state_estimator/kinematics.py): at 2 kHz, Python and numpy
@@ -557,11 +599,12 @@ _I_SPEC = (
     ("TARGET_STATUS", 1),  # out: utime, status, alip stance, in contact, ALIP fields changed
     ("INIT", 1), ("UPDATES", 1), ("STALE", 1), ("LAST_UTIME", 1), ("ALIP_UTIME", 1),
     ("STEPS", 1), ("CC", 2), ("MODE", 2), ("ALIP_STANCE", 1), ("PEND_STANCE", 1),
+    ("STILL_SINCE", 1),  # utime the IMU has read at rest since, with no foot down (-1: not)
 )
 I_OFF, I_SIZE = _offsets(_I_SPEC)
 (I_UTIME, I_STATUS, I_EST_STANCE, I_FC, I_DIRTY, I_TARGET_STATUS, I_INIT, I_UPDATES, I_STALE,
  I_LAST_UTIME, I_ALIP_UTIME, I_STEPS, I_CC, I_MODE, I_ALIP_STANCE,
- I_PEND_STANCE) = (I_OFF[n] for n, _ in _I_SPEC)
+ I_PEND_STANCE, I_STILL_SINCE) = (I_OFF[n] for n, _ in _I_SPEC)
 I_OUT = I_TARGET_STATUS + 1
 
 #: ``C`` (float64): constants
@@ -569,6 +612,7 @@ _C_SPEC = (
     ("LO", W_NCHECK), ("HI", W_NCHECK), ("QN_LO", 1), ("QN_HI", 1),  # range check
     ("R_IMU", 3), ("G", 3), ("VAR_G", 1), ("VAR_A", 1), ("VAR_C", 1), ("VAR_S", 1),
     ("KIN_VAR", 1),  # InEKF
+    ("STILL_GYRO", 1), ("STILL_ACCEL", 1), ("STILL_AFTER_US", 1), ("STILL_VAR", 1),  # at rest
     ("GAIN", 2), ("ON_N", 1), ("OFF_N", 1), ("TD_SPEED", 1),  # contact
     ("FOOT_RADIUS", 1), ("FOOT_HALF", 1), ("MASS", 1),
     ("TGT_OFF", 12), ("ACH_DIR", 6), ("PLA_AXIS", 6), ("PLA_TIP_PROJ", 6), ("ROD_TIP", 12),
@@ -576,7 +620,8 @@ _C_SPEC = (
 )
 C_OFF, C_SIZE = _offsets(_C_SPEC)
 (C_LO, C_HI, C_QN_LO, C_QN_HI, C_R_IMU, C_G, C_VAR_G, C_VAR_A, C_VAR_C, C_VAR_S, C_KIN_VAR,
- C_GAIN, C_ON_N, C_OFF_N, C_TD_SPEED, C_FOOT_RADIUS, C_FOOT_HALF, C_MASS, C_TGT_OFF,
+ C_STILL_GYRO, C_STILL_ACCEL, C_STILL_AFTER_US, C_STILL_VAR, C_GAIN, C_ON_N, C_OFF_N,
+ C_TD_SPEED, C_FOOT_RADIUS, C_FOOT_HALF, C_MASS, C_TGT_OFF,
  C_ACH_DIR, C_PLA_AXIS, C_PLA_TIP_PROJ, C_ROD_TIP, C_FOOT_LOCAL,
  C_SPRING_REF) = (C_OFF[n] for n, _ in _C_SPEC)
 
@@ -615,6 +660,7 @@ PH_CHECK, PH_KIN, PH_PROPAGATE, PH_ESTIMATE, PH_ALIP = range(5)
 STATUS_INITIALIZING = 1 << 0
 STATUS_NO_CONTACT = 1 << 1
 STATUS_PACKET_GAP = 1 << 2
+STATUS_STILL = 1 << 3  # held still with no foot down: zero-velocity updates (_correct_still)
 
 
 @_jit
@@ -688,6 +734,20 @@ def _kinematics(wf: np.ndarray, S: np.ndarray, C: np.ndarray, CI: np.ndarray) ->
 
 
 @_jit
+def _still(N: np.ndarray, C: np.ndarray, utime: int, contact: bool, gyro: np.ndarray,
+           accel: np.ndarray) -> bool:
+    """Whether the robot has been at rest with no foot down for ``C_STILL_AFTER_US``: the
+    zero-velocity update applies (``_correct_still``). Keeps ``I_STILL_SINCE``."""
+    if contact or not still_without_contact(gyro, accel, -C[C_G + 2], C[C_STILL_GYRO],
+                                            C[C_STILL_ACCEL]):
+        N[I_STILL_SINCE] = -1
+        return False
+    if N[I_STILL_SINCE] < 0:
+        N[I_STILL_SINCE] = utime
+    return utime - N[I_STILL_SINCE] >= C[C_STILL_AFTER_US]
+
+
+@_jit
 def _estimate(wf: np.ndarray, S: np.ndarray, N: np.ndarray, C: np.ndarray, CI: np.ndarray,
               gap: bool) -> None:
     """``CassieEstimator.update`` after the propagation, up to the ALIP part: sole points,
@@ -743,6 +803,9 @@ def _estimate(wf: np.ndarray, S: np.ndarray, N: np.ndarray, C: np.ndarray, CI: n
     k0, k1 = N[I_FC] != 0, N[I_FC + 1] != 0
     if k0 or k1:
         _correct(R, fv, fp, d, P, h, k0, k1, kv)
+    still = _still(N, C, _utime(wf), k0 or k1, gyro, wf[W_ACCEL:W_ACCEL + 3])
+    if still:
+        _correct_still(R, fv, fp, d, P, C[C_STILL_VAR])
     # _fill: pelvis origin from the IMU point: p - R r, v - R (w x r)
     nq, nv = CI[CI_NQ], CI[CI_NV]
     q = S[CI[CI_EQ]:CI[CI_EQ] + nq]
@@ -780,6 +843,8 @@ def _estimate(wf: np.ndarray, S: np.ndarray, N: np.ndarray, C: np.ndarray, CI: n
         status |= STATUS_NO_CONTACT
     if gap:
         status |= STATUS_PACKET_GAP
+    if still:
+        status |= STATUS_STILL
     N[I_STATUS] = status
     N[I_UPDATES] += 1
     # the message block: the packet's torques and specific force beside q and v

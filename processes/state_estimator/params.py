@@ -14,7 +14,7 @@ from runtime.errors import ConfigError
 
 from .alip_filter import AlipFilterParams
 from .contact import ContactParams
-from .inekf import InEKFNoise
+from .inekf import InEKFNoise, StillParams
 
 DEFAULT_GAINS_FILE = Path(__file__).resolve().parents[2] / "hw_config" / "gains" / (
     "state_estimator.yaml"
@@ -38,6 +38,7 @@ class EstimatorParams:
     """Everything ``CassieEstimator`` and its process shell read from hw_config."""
 
     inekf: InEKFNoise = field(default_factory=InEKFNoise)
+    still: StillParams = field(default_factory=StillParams)
     contact: ContactParams = field(default_factory=ContactParams)
     alip: AlipFilterParams = field(default_factory=AlipFilterParams)
     limits: PacketLimits = field(default_factory=PacketLimits)
@@ -57,11 +58,14 @@ class EstimatorParams:
         """Validate a parsed gains mapping (``from_yaml`` without the file)."""
         r = _Reader(file)
         doc = r.mapping(doc, "<top level>")
-        r.keys(doc, "", {"inekf", "contact", "alip", "limits", "init", "gravity",
+        r.keys(doc, "", {"inekf", "still", "contact", "alip", "limits", "init", "gravity",
                          "network_every"})
         ine = r.mapping(doc.get("inekf", {}), "inekf")
         r.keys(ine, "inekf.", set(InEKFNoise.__dataclass_fields__))
         inekf = InEKFNoise(**{k: r.num(ine, "inekf", k, lo=0.0, lo_open=True) for k in ine})
+        st = r.mapping(doc.get("still", {}), "still")
+        r.keys(st, "still.", set(StillParams.__dataclass_fields__))
+        still = StillParams(**{k: r.num(st, "still", k, lo=0.0, lo_open=True) for k in st})
         con = r.mapping(doc.get("contact", {}), "contact")
         r.keys(con, "contact.", set(ContactParams.__dataclass_fields__))
         contact = ContactParams(**{k: r.num(con, "contact", k, lo=0.0) for k in con})
@@ -85,7 +89,7 @@ class EstimatorParams:
                 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in xy)):
             raise ConfigError(file, "init.xy_m", f"must be [x, y] in metres, got {xy!r}")
         return cls(
-            inekf=inekf, contact=contact, alip=alip, limits=limits,
+            inekf=inekf, still=still, contact=contact, alip=alip, limits=limits,
             init_xy=(float(xy[0]), float(xy[1])),
             ground_z=float(r.num(init, "init", "ground_z_m", default=0.0)),
             gravity=float(r.num(doc, "", "gravity", default=9.81, lo=0.0, lo_open=True)),

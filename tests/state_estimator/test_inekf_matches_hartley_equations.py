@@ -115,3 +115,38 @@ def test_no_contact_leaves_the_state_alone_on_correction():
     f.correct(np.ones((2, 3)))
     np.testing.assert_array_equal(_group(f), X0)
     np.testing.assert_array_equal(f.P, P0)
+
+
+def test_zero_velocity_update_is_the_right_invariant_update_with_h_on_velocity():
+    """Body velocity measured 0 (``Y = X^-1 b``, b the velocity column): ``H = [0, I, 0...]``,
+    innovation ``-v``, the same group update as the leg kinematics."""
+    f = _random_filter(np.random.default_rng(4), (False, False))
+    X0, P0 = _group(f), f.P.copy()
+    var = 0.01**2
+    f.correct_still(var)
+    H = np.zeros((3, DIM))
+    H[:, 3:6] = np.eye(3)
+    z = -X0[:3, 3]
+    K = P0 @ H.T @ np.linalg.inv(H @ P0 @ H.T + var * np.eye(3))
+    np.testing.assert_allclose(_group(f), expm(_algebra(K @ z)) @ X0, atol=1e-12)
+    np.testing.assert_allclose(f.P, (np.eye(DIM) - K @ H) @ P0, rtol=1e-9, atol=1e-14)
+
+
+@pytest.mark.parametrize("still", [False, True])
+def test_a_minute_hanging_still_keeps_the_position_covariance_small(still):
+    """Hung from the holder with no foot down, IMU at rest: dead reckoning alone lets the
+    position std grow past 100 m in a minute (the first touchdown then threw the estimate
+    metres off); with the zero-velocity updates it stays near its 1 cm start."""
+    f = ContactInEKF(InEKFNoise(), G)
+    f.reset(np.eye(3), np.zeros(3), np.array((0.0, 0.0, 1.0)))
+    gyro, accel = np.zeros(3), np.array((0.0, 0.0, G))
+    for _ in range(round(60.0 / DT)):
+        f.propagate(gyro, accel, DT)
+        if still:
+            f.correct_still(0.01**2)
+    pos_std = np.sqrt(np.diag(f.P)[6:9])
+    if still:
+        assert pos_std.max() < 0.02, pos_std
+        assert np.sqrt(np.diag(f.P)[3:6]).max() < 0.01
+    else:
+        assert pos_std.max() > 100.0, pos_std
