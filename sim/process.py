@@ -242,6 +242,9 @@ PARAMS = {
                          "'footholds', foothold_set_t) at 30 Hz of sim time",
     "push": "an external force on the pelvis: {after_release_s, force_n: [x, y, z], "
             "duration_s} (overrides the gains file's push)",
+    "holder_release": "first_command | first_nonzero_command | manual (overrides the gains "
+                      "file's holder.release_on; manual: only the packets' release flag, "
+                      "which the torque bridge sets with its params.release_after_s)",
 }
 
 
@@ -594,6 +597,14 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
         except ConfigError as exc:
             raise ConfigError(file, proc.key("params", exc.key), exc.problem, exc.allowed) from None
         settings = replace(settings, sim=replace(settings.sim, push=push))
+    if "holder_release" in proc.params:
+        rel = proc.params["holder_release"]
+        choices = ("first_command", "first_nonzero_command", "manual")
+        if rel not in choices:
+            raise ConfigError(file, proc.key("params", "holder_release"),
+                              f"unknown value {rel!r}", allowed=", ".join(choices))
+        settings = replace(settings, sim=replace(
+            settings.sim, holder=replace(settings.sim.holder, release_on=rel)))
     rate = proc.rate_hz if proc.rate_hz else 2000.0
     node = SimNode(settings, profile.mode, rate, drive, fh, profile.rtf)
     node.name = proc.name

@@ -22,10 +22,12 @@ from .controller import SAFE, OscController
 from .model import CassieModel
 from .tasks import DEFAULT_GAINS_FILE, OscParams
 
-_KNOWN_PARAMS = ("gains_file", "start")
+_KNOWN_PARAMS = ("gains_file", "start", "hold_until_plan")
 #: ticks of the set-up warm-up (0.5 ms each): standing, hand-over, single and double stance
 WARM_UP_TICKS = 2000
 START_MODES = ("walk", "stand")
+#: ``torque_command_t.mode`` of the zero torques sent before the first plan (hold_until_plan)
+OFF = 3
 
 
 class OscNode(Node):
@@ -37,8 +39,12 @@ class OscNode(Node):
     trigger_role = "state"
     trigger_policy = "newest"
 
-    def __init__(self, params: OscParams, start: str = "walk") -> None:
+    def __init__(self, params: OscParams, start: str = "walk",
+                 hold_until_plan: bool = False) -> None:
         self.params = params
+        #: off (zero torque, mode 3: the start-up holder keeps the robot) until the MPFC's
+        #: first plan: the robot is let go only once the footstep planner is up
+        self._hold_until_plan = hold_until_plan
         #: until the radio's first command: walk (mode 0, no turning: the stack walks at the
         #: MPFC's default velocity out of the holder) or stand (wait for the radio)
         self._default_command: command_t | None = None
@@ -98,7 +104,13 @@ class OscNode(Node):
             v = np.zeros(self._nv)
         t = float(state.header.utime) * 1e-6
         command = inbox.latest("command") or self._default_command
-        u, dbg = ctrl.update(t, q, v, inbox.latest("plan"), command)
+        plan = inbox.latest("plan")
+        if self._hold_until_plan:
+            if plan is None:
+                self._publish_off(ctx, state)
+                return
+            self._hold_until_plan = False  # once: a later gap in plans is the controller's
+        u, dbg = ctrl.update(t, q, v, plan, command)
         torque = u.tolist()
         if not math.isfinite(sum(torque)):  # defence in depth: never publish a NaN torque
             torque = [0.0] * len(torque)
@@ -125,6 +137,16 @@ class OscNode(Node):
         d.task_errors = dbg.task_errors
         ctx.publish("debug", d)
 
+    def _publish_off(self, ctx: Context, state: Any) -> None:
+        """Zero torque, mode 3 (off): waiting for the MPFC's first plan."""
+        cmd = self._torque
+        cmd.header.utime = state.header.utime
+        cmd.state_packet_seq = state.packet_seq
+        cmd.torque = [0.0] * int(cmd.num_motors)
+        cmd.mode = OFF
+        cmd.status = self._status = "off: waiting for the MPFC's first plan (held)"
+        ctx.publish("torque", cmd)
+
     def status(self) -> str:
         """The controller's last status line (mode and, in safe mode, the reason)."""
         return self._status
@@ -134,9 +156,11 @@ class OscNode(Node):
         return HEALTH_FAULT if self.in_safe_mode else HEALTH_OK
 
     def counters(self) -> dict[str, float]:
-        """The controller's mode (0 walking, 1 standing, 2 safe)."""
+        """The controller's mode (0 walking, 1 standing, 2 safe, 3 off: waiting for a plan)."""
         c = self.controller
-        return {"mode": float(c.mode) if c is not None else -1.0}
+        if c is None:
+            return {"mode": -1.0}
+        return {"mode": float(OFF if self._hold_until_plan else c.mode)}
 
     @property
     def in_safe_mode(self) -> bool:
@@ -165,4 +189,8 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     if path is None:
         candidate = profile.resolve("gains/osc.yaml")
         path = candidate if candidate.exists() else DEFAULT_GAINS_FILE
-    return OscNode(OscParams.from_yaml(path), start)
+    hold = proc.params.get("hold_until_plan", False)
+    if not isinstance(hold, bool):
+        raise ConfigError(str(proc.source_file), proc.key("params", "hold_until_plan"),
+                          f"must be true or false, got {hold!r}", "true, false")
+    return OscNode(OscParams.from_yaml(path), start, hold)

@@ -105,6 +105,10 @@ class TorqueBridgeNode(Node):
         self._state: robot_state_t | None = None  # the state being answered
         self._flags = -1  # the flags the packet holds
         self._release_holder = self.params.release_holder
+        #: set the release flag once the controller has stood or walked this long (sim time,
+        #: us): the robot stands in the holder before it is let go (params.release_after_s)
+        self.release_after_us: int | None = None
+        self._controlled_since = -1
         self._msg = applied_input_t()
         self._msg.num_motors = NUM_MOTORS
 
@@ -122,6 +126,7 @@ class TorqueBridgeNode(Node):
                 # motor velocities (a rejected command)
                 cmd_utime = int(cmd.header.utime)
                 b.on_command(cmd.torque, cmd_utime)
+                self._note_mode(cmd)
                 self._answered_utime = max(self._answered_utime, cmd_utime)
                 self._lazy = inbox
                 self._send(ctx, b, cmd_utime, None, int(cmd.state_packet_seq) & 0xFF)
@@ -146,6 +151,7 @@ class TorqueBridgeNode(Node):
             if self._pending is not None:
                 b.on_command(*self._pending)
             self._pending = (list(cmd.torque), int(cmd.header.utime))
+            self._note_mode(cmd)
         else:
             state = inbox.trigger() or inbox.latest("state")
             if state is None:
@@ -154,7 +160,24 @@ class TorqueBridgeNode(Node):
                 cmd = inbox.latest("torque")
                 if cmd is not None:
                     b.on_command(cmd.torque, cmd.header.utime)
+                    self._note_mode(cmd)
         self._send(ctx, b, int(state.header.utime), state, packet_seq_of(state))
+
+    def _note_mode(self, cmd: torque_command_t) -> None:
+        """``release_after_s``: release once the controller has stood or walked (mode 0 or 1)
+        without a break for that long; safe mode or off starts the count again."""
+        after = self.release_after_us
+        if after is None or self._release_holder:
+            return
+        utime = int(cmd.header.utime)
+        if int(cmd.mode) not in (0, 1):
+            self._controlled_since = -1
+        elif self._controlled_since < 0:
+            self._controlled_since = utime
+        elif utime - self._controlled_since >= after:
+            self._release_holder = True
+            log.info("controller standing for %.1f s: releasing the start-up holder at t=%.4f s",
+                     after * 1e-6, utime * 1e-6)
 
     def _motor_velocities(self) -> np.ndarray:
         """The motor velocities of the state being answered (for the damping fallback only:
@@ -229,9 +252,16 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     answer = str(proc.params.get("answer_on", "auto"))
     choices = ("auto", "command", "state", "torque")
     for key in proc.params:
-        if key not in ("answer_on", "fill_hz"):
+        if key not in ("answer_on", "fill_hz", "release_after_s"):
             raise ConfigError(str(proc.source_file), proc.key("params", str(key)),
-                              "unknown parameter", "answer_on, fill_hz")
+                              "unknown parameter", "answer_on, fill_hz, release_after_s")
+    after = proc.params.get("release_after_s")
+    if after is not None and (isinstance(after, bool) or not isinstance(after, int | float)
+                              or not 0 <= after <= 60):
+        raise ConfigError(str(proc.source_file), proc.key("params", "release_after_s"),
+                          f"not a duration: {after!r}",
+                          "seconds in [0, 60] of the controller standing before the holder "
+                          "is released (with the sim's params.holder_release: manual)")
     fill_hz = proc.params.get("fill_hz")
     if fill_hz is not None and (isinstance(fill_hz, bool) or not isinstance(fill_hz, int | float)
                                 or not 0 < fill_hz <= 2000):
@@ -246,4 +276,6 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     node = TorqueBridgeNode(BridgeParams.from_yaml(path), answer,
                             float(fill_hz) if fill_hz is not None else None)
     node.name = proc.name
+    if after is not None:
+        node.release_after_us = round(float(after) * 1e6)
     return node
