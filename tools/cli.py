@@ -117,7 +117,8 @@ def build_parser() -> argparse.ArgumentParser:
     launch = sub.add_parser("launch", help="run a launch profile under the supervisor")
     launch.add_argument("profile", help="profile name or path, e.g. hw_config/sim.yaml")
     launch.add_argument(
-        "--duration", type=float, default=None, help="run for S seconds, print a summary and exit"
+        "--duration", type=float, default=None,
+        help="run for S seconds once every process is ready, print a summary and exit",
     )
     launch.add_argument("--log-dir", default=None, help="folder for per-process logs")
     launch.add_argument(

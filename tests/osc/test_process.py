@@ -145,3 +145,23 @@ def test_before_the_first_command_the_osc_walks_or_stands_as_configured(q_stand,
 def test_a_bad_start_value_names_the_key():
     with pytest.raises(ConfigError, match="start"):
         make_node(_proc(start="run"), _profile())
+
+
+def test_hold_until_plan_sends_zero_torque_off_until_the_first_plan(q_stand):
+    """``hold_until_plan``: mode 3 (off), zero torque, while no plan has come (the holder
+    keeps the robot); from the first plan on the controller runs."""
+    node = make_node(_proc(hold_until_plan=True), _profile())
+    ctx = _Ctx()
+    node.setup(ctx)
+    node.tick(ctx, _Inbox(_state(q_stand, 1000)))
+    tq = dict(ctx.sent)["torque"]
+    assert tq.mode == 3 and tq.torque == (0.0,) * 10 and "waiting" in tq.status
+    assert node.counters()["mode"] == 3.0
+    node.tick(ctx, _PlanInbox(_state(q_stand, 1500), _ds_plan(node, 1500)))
+    tq = ctx.sent[-2][1] if ctx.sent[-1][0] == "debug" else ctx.sent[-1][1]
+    assert tq.mode in (0, 1) and any(t != 0.0 for t in tq.torque)
+
+
+def test_a_bad_hold_until_plan_value_names_the_key():
+    with pytest.raises(ConfigError, match="hold_until_plan"):
+        make_node(_proc(hold_until_plan="yes"), _profile())
