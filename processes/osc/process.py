@@ -22,7 +22,7 @@ from .controller import SAFE, OscController
 from .model import CassieModel
 from .tasks import DEFAULT_GAINS_FILE, OscParams
 
-_KNOWN_PARAMS = ("gains_file", "start", "hold_until_plan")
+_KNOWN_PARAMS = ("gains_file", "start", "hold_until_plan", "stand_first_s")
 #: ticks of the set-up warm-up (0.5 ms each): standing, hand-over, single and double stance
 WARM_UP_TICKS = 2000
 START_MODES = ("walk", "stand")
@@ -40,11 +40,17 @@ class OscNode(Node):
     trigger_policy = "newest"
 
     def __init__(self, params: OscParams, start: str = "walk",
-                 hold_until_plan: bool = False) -> None:
+                 hold_until_plan: bool = False, stand_first_s: float = 0.0) -> None:
         self.params = params
         #: off (zero torque, mode 3: the start-up holder keeps the robot) until the MPFC's
-        #: first plan: the robot is let go only once the footstep planner is up
+        #: first plan: the robot is let go only once the footstep planner is up ...
         self._hold_until_plan = hold_until_plan
+        #: ... and then stands this long (whatever the radio says) before it may walk: in the
+        #: holder, which the bridge releases after its release_after_s of standing, then free
+        self._stand_first_us = round(stand_first_s * 1e6)
+        self._walk_from_us: int | None = None if stand_first_s > 0.0 else 0
+        self._stand = command_t()
+        self._stand.mode = 1
         #: until the radio's first command: walk (mode 0, no turning: the stack walks at the
         #: MPFC's default velocity out of the holder) or stand (wait for the radio)
         self._default_command: command_t | None = None
@@ -110,6 +116,11 @@ class OscNode(Node):
                 self._publish_off(ctx, state)
                 return
             self._hold_until_plan = False  # once: a later gap in plans is the controller's
+        utime = int(state.header.utime)
+        if self._walk_from_us is None:  # the first controlled tick: stand for a while
+            self._walk_from_us = utime + self._stand_first_us
+        if utime < self._walk_from_us:
+            command = self._stand
         u, dbg = ctrl.update(t, q, v, plan, command)
         torque = u.tolist()
         if not math.isfinite(sum(torque)):  # defence in depth: never publish a NaN torque
@@ -193,4 +204,8 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     if not isinstance(hold, bool):
         raise ConfigError(str(proc.source_file), proc.key("params", "hold_until_plan"),
                           f"must be true or false, got {hold!r}", "true, false")
-    return OscNode(OscParams.from_yaml(path), start, hold)
+    stand = proc.params.get("stand_first_s", 0.0)
+    if isinstance(stand, bool) or not isinstance(stand, int | float) or not 0 <= stand <= 60:
+        raise ConfigError(str(proc.source_file), proc.key("params", "stand_first_s"),
+                          f"not a duration: {stand!r}", "seconds in [0, 60]")
+    return OscNode(OscParams.from_yaml(path), start, hold, float(stand))

@@ -165,3 +165,20 @@ def test_hold_until_plan_sends_zero_torque_off_until_the_first_plan(q_stand):
 def test_a_bad_hold_until_plan_value_names_the_key():
     with pytest.raises(ConfigError, match="hold_until_plan"):
         make_node(_proc(hold_until_plan="yes"), _profile())
+    with pytest.raises(ConfigError, match="stand_first_s"):
+        make_node(_proc(stand_first_s=-2), _profile())
+
+
+def test_stand_first_keeps_standing_on_a_walking_plan_then_walks(q_stand):
+    """``stand_first_s``: the first controlled ticks stand (in the holder, which the bridge
+    releases after standing), whatever the command; then the walking plan is taken up."""
+    from processes.osc.controller import STANDING, WALKING
+
+    node = make_node(_proc(stand_first_s=0.5), _profile())
+    ctx = _Ctx()
+    node.setup(ctx)
+    node.tick(ctx, _Inbox(_state(q_stand, 1000)))
+    node.tick(ctx, _PlanInbox(_state(q_stand, 1500), _ds_plan(node, 1500)))
+    assert node.controller.mode == STANDING
+    node.tick(ctx, _PlanInbox(_state(q_stand, 501_500), _ds_plan(node, 501_500)))
+    assert node.controller.mode == WALKING
