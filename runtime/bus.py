@@ -76,7 +76,7 @@ class Subscription(PortBuffer):
 
     def __init__(self, channel: str, msg_type: type | None, policy: Policy, capacity: int) -> None:
         super().__init__(policy, capacity)
-        self.channel = channel
+        self.channel = self.name = channel
         self.msg_type = msg_type
         self._fingerprint: bytes | None = (
             msg_type._get_packed_fingerprint() if msg_type is not None else None  # type: ignore[attr-defined]

@@ -69,6 +69,7 @@ PROCESS_KEYS = {
     "gains",
     "description",
     "harness_delay_ms",
+    "limits",
 }
 RESTART_KEYS = {"policy", "max_restarts", "window_s", "backoff_initial_s", "backoff_max_s"}
 MODES = ("realtime", "lockstep")
@@ -630,6 +631,26 @@ def _process(
                 allowed="a path relative to hw_config/, e.g. gains/osc.yaml",
             )
     params = ck.mapping(d.get("params") or {}, f"{key}.params")
+    limits: dict[str, dict[str, tuple[float, float]]] = {}
+    for role, fields in ck.mapping(d.get("limits") or {}, f"{key}.limits").items():
+        if role not in inputs:
+            raise ck.fail(f"{key}.limits.{role}", "not an input of this process",
+                          allowed=", ".join(sorted(inputs)))
+        limits[str(role)] = {}
+        for fname, rng in ck.mapping(fields or {}, f"{key}.limits.{role}").items():
+            if fname == "utime_step_s":  # the stream's clock (runtime.validate): one number
+                if isinstance(rng, bool) or not isinstance(rng, int | float) or not rng > 0:
+                    raise ck.fail(f"{key}.limits.{role}.utime_step_s",
+                                  f"must be seconds > 0, got {rng!r}")
+                limits[str(role)][fname] = (0.0, float(rng))
+                continue
+            ok = (isinstance(rng, list) and len(rng) == 2
+                  and all(isinstance(x, int | float) and not isinstance(x, bool) for x in rng)
+                  and all(x == x for x in rng) and rng[0] <= rng[1])
+            if not ok:
+                raise ck.fail(f"{key}.limits.{role}.{fname}", f"must be [lo, hi], got {rng!r}",
+                              allowed="two numbers, lo <= hi")
+            limits[str(role)][str(fname)] = (float(rng[0]), float(rng[1]))
     return ProcessConfig(
         name=pname,
         host=host,
@@ -650,6 +671,7 @@ def _process(
         output_rate_hz={str(k): float(v) for k, v in out_rates.items()},
         gc=ck.string(d, key, "gc", default="freeze", choices=("on", "freeze")),
         params=params,
+        limits=limits,
         gains_file=gains_file,
         harness_delay_ms=ck.number(d, key, "harness_delay_ms", default=0.0, lo=0.0, hi=1000.0),
     )

@@ -76,6 +76,9 @@ class ProcessConfig:
     #: output role -> at most this many messages per second of sim time (debug streams)
     output_rate_hz: dict[str, float] = field(default_factory=dict)
     params: dict[str, Any] = field(default_factory=dict)  # free-form, validated by the process
+    #: input role -> field -> (lo, hi): a message outside is rejected at the edge
+    #: (``runtime.validate``), as is any message with a non-finite float
+    limits: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
     gains_file: Path | None = None
     harness_delay_ms: float = 0.0  # modelled compute latency in the deterministic harness
 

@@ -21,8 +21,9 @@ from typing import Any
 
 from runtime.bus import Subscription
 from runtime.config_types import Profile
-from runtime.node import Node, OutputGates, SlotGate
+from runtime.node import Node, OutputGates, SlotGate, TickGuard
 from runtime.port_buffer import PortInbox
+from runtime.validate import input_checks
 
 US = 1_000_000
 #: an "each" inbox never drops in the harness: a tick is scheduled per message
@@ -41,6 +42,10 @@ class Binding:
     delay_us: int = 0  # sim time between the trigger and the tick's outputs being visible
     max_rate_hz: float | None = None  # at most one tick per 1/max_rate_hz of sim time
     output_rate_hz: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    #: input role -> field -> (lo, hi): the edge checks of ``runtime.validate`` (a live
+    #: process's ``limits`` from hw_config); every LCM input is checked finite regardless
+    limits: Mapping[str, Mapping[str, tuple[float, float]]] = dataclasses.field(
+        default_factory=dict)
 
 
 class _Context:
@@ -74,6 +79,8 @@ class Harness:
         self._seq: dict[str, int] = defaultdict(int)
         self._taps: dict[str, list[Callable[[int, Any], None]]] = defaultdict(list)
         self.exec_ns: list[list[int]] = []
+        #: per binding: its ticks' exceptions, caught and counted as in a live process
+        self.guards: list[TickGuard] = []
         self.published: dict[str, int] = defaultdict(int)
         for i, b in enumerate(bindings):
             self._bind(i, b)
@@ -108,10 +115,14 @@ class Harness:
                 b.inputs[role], None if typ is bytes else typ, policy, capacity=HARNESS_QUEUE
             )
             self._subscribers[b.inputs[role]].append((i, role))
+        for role, check in input_checks(b.node.inputs, b.limits, b.node.name,
+                                        own=b.node.validates_own).items():
+            ports[role].check = check
         for role in b.node.outputs:
             if role not in b.outputs:
                 raise KeyError(f"{b.node.name}: output role {role!r} is not bound to a channel")
         self._ports.append(ports)
+        self.guards.append(TickGuard(b.node))
         self._inboxes.append(PortInbox(ports))
         self._contexts.append(_Context(self, i))
         self._pending_tick.append(False)
@@ -203,6 +214,7 @@ class Harness:
                     delay_us=round(proc.harness_delay_ms * 1000),
                     max_rate_hz=proc.max_rate_hz,
                     output_rate_hz=dict(proc.output_rate_hz),
+                    limits=proc.limits,
                 )
             )
         return cls(bindings)
@@ -251,7 +263,7 @@ class Harness:
     def _tick_trigger(self, i: int) -> None:
         node = self.bindings[i].node
         port = self._ports[i][node.trigger_role]  # type: ignore[index]
-        msg = port.pop() if port.policy == "each" else port.latest()
+        msg = port.pop() if port.policy == "each" else port.take()
         if msg is None:
             return
         gate = self._rate_gates[i]
@@ -262,7 +274,6 @@ class Harness:
         self._tick(i, msg)
 
     def _tick(self, i: int, trigger: Any | None) -> None:
-        node = self.bindings[i].node
         ctx = self._contexts[i]
         if trigger is None:
             ctx.now_utime = self.now_us
@@ -272,7 +283,7 @@ class Harness:
         inbox = self._inboxes[i]
         inbox._trigger = trigger
         t0 = time.perf_counter_ns()
-        node.tick(ctx, inbox)
+        self.guards[i].tick(ctx, inbox)
         self.exec_ns[i].append(time.perf_counter_ns() - t0)
 
 

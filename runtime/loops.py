@@ -36,11 +36,12 @@ from typing import Any
 
 from runtime.bus import Bus, Subscription
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
-from runtime.node import Node, OutputGates, SlotGate
+from runtime.node import HEALTH_WARNING, Node, OutputGates, SlotGate, TickGuard
 from runtime.port_buffer import PortInbox
 from runtime.scheduling import apply_scheduling, lock_memory
 from runtime.timing import LoopTimer
 from runtime.udp import UdpReceiver, UdpSender
+from runtime.validate import input_checks
 
 log = logging.getLogger(__name__)
 
@@ -141,6 +142,11 @@ class LiveRunner:
                 )
                 if fill_hz:
                     self._fill_ports.append(self.ports[role])
+        # the edge: every LCM input checked before the node sees it (runtime.validate)
+        for role, check in input_checks(node.inputs, proc.limits, str(proc.source_file),
+                                        proc.key("limits"), node.validates_own).items():
+            self.ports[role].check = check
+        self.guard = TickGuard(node)
         for role in node.outputs:
             ch = self._channel(role, proc.outputs, "outputs")
             if ch.udp is not None:
@@ -228,7 +234,19 @@ class LiveRunner:
     def _report(self, now_ns: int) -> None:
         self._stale_and_errors()
         node = self.node
-        msg = self.timer.report(now_ns, node.status(), node.health(), node.counters())
+        counters = dict(node.counters())
+        rejected = sum(p.rejected for p in self.ports.values())
+        counters["inputs_rejected"] = float(rejected)
+        counters["tick_errors"] = float(self.guard.errors)
+        status, health = node.status(), node.health()
+        if self.guard.errors:
+            status += f" | {self.guard.errors} tick errors, last: {self.guard.last_error}"
+            health = max(health, HEALTH_WARNING)
+        if rejected:
+            last = next((f"{r}: {p.last_rejected}" for r, p in self.ports.items()
+                         if p.last_rejected), "")
+            status += f" | {rejected} inputs rejected, last {last}"
+        msg = self.timer.report(now_ns, status, health, counters)
         msg.header.source = self.proc.name
         self.bus.publish(self.profile.timing_channel, msg)
 
@@ -314,7 +332,7 @@ class LiveRunner:
             self._poll(0.0)
             self.ctx.now_utime = k * period_us
             self.inbox._trigger = None
-            self.node.tick(self.ctx, self.inbox)
+            self.guard.tick(self.ctx, self.inbox)
             end = mono_ns()
             cpu = thread_ns() - c0
             age = -1
@@ -384,7 +402,7 @@ class LiveRunner:
                             port.discard()
                             self.timer.rate_skipped_total += 1
                             continue
-                    msg = port.latest()
+                    msg = port.take()  # None: nothing good came (no tick on an old one)
                     if msg is not None:
                         if gate is None or gate.admit(_utime(msg)):
                             self._tick_on(msg, port, deadline_ns)
@@ -404,7 +422,7 @@ class LiveRunner:
             elif (not triggered and timeout_s is not None
                   and now - last_trigger_ns > timeout_s * 1e9):
                 self.inbox._trigger = None  # the watchdog's tick
-                self.node.tick(self.ctx, self.inbox)
+                self.guard.tick(self.ctx, self.inbox)
                 last_trigger_ns = time.monotonic_ns()
             now = time.monotonic_ns()
             self._maybe_report(now)
@@ -425,7 +443,7 @@ class LiveRunner:
         if utime:
             self.ctx.now_utime = utime
         self.inbox._trigger = msg
-        self.node.tick(self.ctx, self.inbox)
+        self.guard.tick(self.ctx, self.inbox)
         end = time.monotonic_ns()
         cpu = time.thread_time_ns() - c0
         self.timer.last_utime = self.ctx.now_utime

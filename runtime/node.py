@@ -9,8 +9,11 @@ Which channel a role is bound to lives in ``hw_config``, not in the node.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from typing import Any, Literal, Protocol
+
+log = logging.getLogger(__name__)
 
 #: A port's payload type: an lcm-gen message class, or ``bytes`` for a raw UDP datagram.
 PortType = type
@@ -66,6 +69,30 @@ class OutputGates:
             return True
         self.dropped += 1
         return False
+
+
+class TickGuard:
+    """Runs a node's ``tick`` so that an exception in it never ends the process: caught,
+    counted, logged (with the traceback the first times), and the node's previous outputs
+    stand (its consumers keep the last good message). Both runners tick through one."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self.errors = 0
+        self.last_error = ""
+
+    def tick(self, ctx: Context, inbox: Inbox) -> bool:
+        """One tick; False when it raised."""
+        try:
+            self.node.tick(ctx, inbox)
+            return True
+        except Exception as exc:  # any bug in a tick: count it, keep running
+            self.errors += 1
+            self.last_error = f"{type(exc).__name__}: {exc}"[:200]
+            if self.errors <= 3 or self.errors % 1000 == 0:
+                log.exception("%s: tick raised (#%d), previous outputs kept", self.node.name,
+                              self.errors)
+            return False
 
 
 class Context(Protocol):
@@ -134,6 +161,10 @@ class Node:
     #: runs (as a camera's polling thread fills a shared frame buffer for the mapping thread);
     #: the harness ignores it (everything there is in sim-time order)
     receive_thread: bool = False
+    #: inputs the node validates itself, which the runtime's edge check (``runtime.validate``)
+    #: leaves alone: where a bad message calls for a reaction, not only a rejection (the
+    #: torque bridge answers a NaN command with its fallback at once)
+    validates_own: tuple[str, ...] = ()
     #: set by the runner from ``hw_config`` (rate_hz, deadline_ms) before ``setup``
     period_s: float | None = None
     deadline_s: float | None = None

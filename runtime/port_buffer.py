@@ -7,13 +7,15 @@ that only wants the newest message never pays for decoding the ones it skips.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, Literal
 
 Policy = Literal["newest", "each"]
+log = logging.getLogger(__name__)
 
 
 class PortBuffer:
@@ -35,6 +37,12 @@ class PortBuffer:
         self.decode_errors = 0
         self.overflowed = 0
         self.last_receive_ns = 0
+        #: the edge check (``runtime.validate.InputCheck``): a decoded message it rejects is
+        #: dropped and counted, and the previous good one stays the newest
+        self.check: Callable[[Any], str | None] | None = None
+        self.rejected = 0
+        self.last_rejected = ""
+        self.name = ""  # for the log (a channel name)
         self._lock = threading.Lock()
 
     def put(self, data: bytes) -> None:
@@ -54,8 +62,30 @@ class PortBuffer:
         """Payload -> message, or None when it is malformed (subclasses count why)."""
         return data
 
+    def _admit(self, data: bytes) -> Any | None:
+        """Decode, then the edge check: the message, or None (malformed or rejected)."""
+        msg = self._decode(data)
+        if msg is None or self.check is None:
+            return msg
+        why = self.check(msg)
+        if why is None:
+            return msg
+        self.rejected += 1
+        self.last_rejected = why
+        if self.rejected in (1, 10, 100, 1000) or self.rejected % 10000 == 0:
+            log.warning("input %s: rejected a message at the edge: %s (%d so far)",
+                        self.name or "?", why, self.rejected)
+        return None
+
     def latest(self) -> Any | None:
         """The newest message, decoded and marked consumed (the previous good one if corrupt)."""
+        self.take()
+        return self._decoded
+
+    def take(self) -> Any | None:
+        """The newest message if it is good (decoded, admitted), marked consumed; None when
+        nothing new came or what came was malformed or rejected. A trigger is taken, never
+        ``latest``: a bad message must not re-run the loop on the previous good one."""
         with self._lock:
             if self.policy == "each":
                 raws = list(self._queue)
@@ -64,11 +94,12 @@ class PortBuffer:
                 raws = [] if self._raw is None else [self._raw]
                 self._raw = None
             self.fresh = False
+        good = None
         for raw in raws:
-            msg = self._decode(raw)
+            msg = self._admit(raw)
             if msg is not None:
-                self._decoded = msg
-        return self._decoded
+                self._decoded = good = msg
+        return good
 
     def pop(self) -> Any | None:
         """Next message in arrival order (``each`` policy); None when the queue is empty."""
@@ -79,7 +110,7 @@ class PortBuffer:
                     return None
                 raw = self._queue.popleft()
                 self.fresh = bool(self._queue)
-            msg = self._decode(raw)
+            msg = self._admit(raw)
             if msg is not None:
                 self._decoded = msg
                 return msg

@@ -73,6 +73,9 @@ class TorqueBridgeNode(Node):
     outputs = {"robot_input": bytes, "applied_input": applied_input_t}
     trigger_role = "state"
     trigger_policy = "newest"
+    #: a NaN or over-limit command gets the fallback at once (TorqueBridge.on_command), not
+    #: the previous torques until the watchdog: the bridge checks commands itself
+    validates_own = ("torque",)
 
     def __init__(self, params: BridgeParams | None = None, answer_on: str = "state",
                  fill_hz: float | None = None) -> None:
