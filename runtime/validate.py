@@ -175,7 +175,7 @@ class InputCheck:
                 if v and not (lo <= min(v) and max(v) <= hi):
                     return f"{name} outside [{lo:g}, {hi:g}] ({min(v):g} .. {max(v):g})"
             elif not lo <= v <= hi:
-                return f"{name} = {v!r} outside [{lo:g}, {hi:g}]"
+                return f"{name} = {v:g} outside [{lo:g}, {hi:g}]"
         if self._consistent is not None:
             why = self._consistent(msg)
             if why is not None:
