@@ -94,6 +94,8 @@ class Child:
     priority: str = "not requested"
     detail: str = ""
     ever_failed: bool = False
+    crashes: int = 0  # exits with an error or a signal it was not ordered to take
+    last_crash: str = ""
     command: list[str] | None = None  # a helper program instead of `cassie run NAME`
     heartbeat: bool = True  # sends TIMING (a Node); else ready once alive for a moment
     _kids: dict[int, psutil.Process] = field(default_factory=dict)
@@ -376,13 +378,18 @@ class Supervisor:
             for s, h in old.items():
                 signal.signal(s, h)
         self._print_summary()
-        return 1 if self._required_failed() or self._faults() else 0
+        return 1 if self._required_failed() or self._faults() or self._crashed() else 0
 
     def _required_failed(self) -> bool:
         return any(
             c.proc.required and (c.state in FAILED_STATES or c.ever_failed)
             for c in self.children.values()
         )
+
+    def _crashed(self) -> list[str]:
+        """Required processes that crashed at least once (a restart kept the run going, but
+        the run's result is a failure: a controller that dies mid-walk is a bug)."""
+        return [c.proc.name for c in self.children.values() if c.proc.required and c.crashes]
 
     def _faults(self) -> list[str]:
         """Required processes that reported a fault (safe mode, a fall) at any time."""
@@ -448,6 +455,9 @@ class Supervisor:
         child.ps = None
         policy = child.proc.restart
         how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exited with {code}"
+        if code != 0:
+            child.crashes += 1  # restarted or not, the run is no longer a clean one
+            child.last_crash = how
         if policy.policy == "never" or (policy.policy == "on-failure" and code == 0):
             child.state = "exited" if code == 0 else "failed"
             child.ever_failed = child.ever_failed or code != 0
@@ -622,6 +632,12 @@ class Supervisor:
         ]
         for name in self._faults():
             self.out.write(f"fault: {name}: {self.children[name].fault}\n")
+            if name not in bad:
+                bad.append(name)
+        for name in self._crashed():
+            c = self.children[name]
+            self.out.write(f"crashed: {name}: {c.crashes} time(s), restarted {c.restarts} "
+                           f"time(s); last: {c.last_crash} (see its log)\n")
             if name not in bad:
                 bad.append(name)
         self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")

@@ -108,6 +108,12 @@ class MpfcSolver:
         p_stance = np.asarray(p_stance, dtype=float).reshape(3)
         v = np.asarray(vdes, dtype=float).reshape(2)
         t_star = float(t_remaining_s)
+        # a non-finite input has no optimum: say so at once (unchecked, the search spent its
+        # whole time budget on N = 2 and raised LinAlgError deep in the search on N = 3)
+        for what, val in (("x_alip", x_c), ("p_stance", p_stance), ("vdes", v),
+                          ("t_remaining_s", t_star), ("yaw", float(yaw))):
+            if not np.all(np.isfinite(val)):
+                raise ValueError(f"MpfcSolver.solve: {what} is not finite ({val})")
         rot = yaw_rotation(yaw)
         world = self._world_footholds(footholds)
         lf = world.local(p_stance, yaw, p.foothold_max_count, p.foothold_max_distance_m,
