@@ -153,7 +153,6 @@ class MpfcNode(Node):
         self.footholds = static_footholds
         self._foothold_seq = -1
         self.vdes = np.array(default_velocity, dtype=float)
-        self.walking = True
         self.height_lookup = height_lookup
         self.max_height_m = max_height_m
         self._reachable: tuple[list[Foothold] | None, float, list[Foothold]] = (None, math.nan, [])
@@ -172,8 +171,10 @@ class MpfcNode(Node):
         if inbox.is_fresh("command"):
             cmd = inbox.latest("command")
             if cmd is not None and all(math.isfinite(x) for x in (cmd.vx, cmd.vy)):
-                self.vdes[:] = (cmd.vx, cmd.vy)
-                self.walking = cmd.mode == 0
+                # a stand: step to a stop (desired velocity 0) and keep planning; the OSC
+                # hands over to standing in double stance once the CoM has come to rest
+                # (planning "standing" at once left it to brake a walking robot on its feet)
+                self.vdes[:] = (cmd.vx, cmd.vy) if cmd.mode == 0 else (0.0, 0.0)
         if self.source == "channel" and inbox.is_fresh("footholds"):
             msg = inbox.latest("footholds")
             if msg is not None and msg.header.seq != self._foothold_seq:
@@ -204,10 +205,6 @@ class MpfcNode(Node):
         self.kin.update(q, v)
         yaw = self.kin.pelvis_yaw()
         p = self.params
-        if not self.walking:
-            self.stance = None
-            self._publish(ctx, state, None, "standing")
-            return
         if self.stance is None:  # start walking as if the left foot just touched down: the
             self.stance = LEFT  # gait begins in double stance, where the OSC hands over
             self.touchdown_s = t
@@ -310,7 +307,7 @@ class MpfcNode(Node):
             if sol.alip_states is not None:
                 dbg.solution = np.asarray(sol.alip_states, dtype=float).ravel().tolist()
                 dbg.solution_size = len(dbg.solution)
-        dbg.status = 0 if status == "standing" else STATUS.get(status, 3)
+        dbg.status = STATUS.get(status, 3)
         dbg.status_text = (
             self.last_status if sol is None or sol.has_plan else f"{status}: previous plan kept"
         )

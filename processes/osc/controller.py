@@ -249,11 +249,18 @@ class OscController:
         z0 = min(pt[2] for pt in p)
         return all(pt[2] - z0 < dz for pt in p) and all(abs(vv[2]) < vz for vv in v)
 
-    def _com_settled(self, margin: float = 0.02) -> bool:
-        """The CoM can be stopped without a step: its instantaneous capture point
-        com + v / omega (omega = sqrt(g / z), LIP) lies inside the box of the four contact
-        points shrunk by ``margin`` (world x, y). Blade feet give only a short box fore-aft."""
+    def _com_settled(self, margin: float = 0.02, speed: float = 0.1) -> bool:
+        """The CoM can be stopped without a step: it moves slower than ``speed`` (m/s,
+        horizontal) and its instantaneous capture point com + v / omega (omega = sqrt(g / z),
+        LIP) lies inside the box of the four contact points shrunk by ``margin`` (world x, y).
+        Blade feet give only a short box fore-aft. (The capture point alone let the hand-back
+        happen at a touchdown at full walking speed, where the long double-stance box holds
+        it: the standing CoM task then braked the robot, the rear foot unloaded and slid, and
+        Cassie fell within 1.1 s; so a stand is asked for by stepping to a stop first.)"""
         m = self.model
+        vx, vy = m.com_vel_l[0], m.com_vel_l[1]
+        if vx * vx + vy * vy > speed * speed:
+            return False
         pts = m.p_contact_l
         z = m.com_l[2] - 0.25 * sum(p[2] for p in pts)
         inv_omega = math.sqrt(max(z, 0.3) / 9.81)

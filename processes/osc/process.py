@@ -19,6 +19,7 @@ from runtime.errors import ConfigError
 from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
 
 from .controller import SAFE, OscController
+from .fallback import PlanFallback
 from .model import CassieModel
 from .tasks import DEFAULT_GAINS_FILE, OscParams
 
@@ -58,6 +59,7 @@ class OscNode(Node):
             self._default_command = command_t()
             self._default_command.mode = 0
         self.controller: OscController | None = None
+        self.fallback: PlanFallback | None = None
         self._torque = torque_command_t()
         self._debug = osc_debug_t()
         self._status = "starting"
@@ -66,6 +68,8 @@ class OscNode(Node):
         """Build the controller (model copy, QP solvers) before the first state arrives."""
         self.controller = OscController(self.params, CassieModel())
         m = self.controller.model
+        after = self.params.safety.plan_fallback_s
+        self.fallback = PlanFallback(m, after) if after > 0.0 else None
         self._nq, self._nv = m.nq, m.nv
         self._torque.num_motors = m.nu
 
@@ -121,6 +125,9 @@ class OscNode(Node):
             self._walk_from_us = utime + self._stand_first_us
         if utime < self._walk_from_us:
             command = self._stand
+        fb = self.fallback
+        if fb is not None:  # the MPFC's plans lost while walking: own steps in place
+            plan = fb.step(t, q, v, plan, ctrl.mode)
         u, dbg = ctrl.update(t, q, v, plan, command)
         torque = u.tolist()
         if not math.isfinite(sum(torque)):  # defence in depth: never publish a NaN torque
@@ -130,9 +137,11 @@ class OscNode(Node):
         cmd.state_packet_seq = state.packet_seq
         cmd.torque = torque
         cmd.mode = dbg.mode
-        cmd.status = dbg.status
+        status = dbg.status
+        if fb is not None and fb.active:
+            status += " (MPFC plans lost: own steps in place until it is back)"
+        cmd.status = self._status = status
         ctx.publish("torque", cmd)
-        self._status = dbg.status
         if not ctx.due("debug"):  # OSC_DEBUG is decimated (processes.osc.output_rate_hz)
             return
         d = self._debug
@@ -171,7 +180,10 @@ class OscNode(Node):
         c = self.controller
         if c is None:
             return {"mode": -1.0}
-        return {"mode": float(OFF if self._hold_until_plan else c.mode)}
+        fb = self.fallback
+        return {"mode": float(OFF if self._hold_until_plan else c.mode),
+                "plan_fallbacks": float(fb.engaged if fb is not None else 0),
+                "plan_handbacks": float(fb.handed_back if fb is not None else 0)}
 
     @property
     def in_safe_mode(self) -> bool:

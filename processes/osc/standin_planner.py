@@ -1,10 +1,13 @@
-"""A simple ALIP foot-placement planner that stands in for MPFC in OSC tests and benchmarks.
+"""A simple ALIP foot-placement planner: MPFC's stand-in in OSC tests and benchmarks, and the
+OSC's own planner while the MPFC's plans are lost (``fallback.PlanFallback``).
 
-Not the MPFC of Section IV: fixed step timing (T_ss, T_ds), flat ground, no footholds, zero
-ankle torque. The next footstep is the one-step ALIP deadbeat placement that brings the
-angular momentum about the contact point at the end of the next step to that of a periodic gait
-at the desired velocity and step width. It emits ``mpfc_output_t`` messages so the OSC sees
-exactly what it would get from the real planner.
+Not the MPFC of Section IV: fixed step timing (T_ss, T_ds), no footholds, zero ankle torque.
+The next footstep is the one-step ALIP deadbeat placement that brings the angular momentum
+about the contact point at the end of the next step to that of a periodic gait at the desired
+velocity and step width, in the frame of a fixed heading. It emits ``mpfc_output_t`` messages
+so the OSC sees exactly what it would get from the real planner. By default the ground is
+flat at z = 0; ``measured_ground`` keeps each stance foot's measured height (steps in place on
+whatever the robot stands on).
 """
 
 from __future__ import annotations
@@ -26,8 +29,10 @@ class StandInPlanner:
 
     def __init__(self, model: CassieModel, vdes: tuple[float, float] = (0.0, 0.0),
                  step_width: float = 0.26, H: float = 0.85, t_ss: float = 0.3,
-                 t_ds: float = 0.1) -> None:
+                 t_ds: float = 0.1, measured_ground: bool = False) -> None:
         self.m = model
+        self.measured_ground = measured_ground
+        self.yaw = 0.0  # the heading of the stance frame the gait is planned in
         self.vdes = np.array(vdes, dtype=float)
         self.w = step_width
         self.H = H
@@ -41,10 +46,21 @@ class StandInPlanner:
         self.next_pos = np.zeros(3)
 
     def _foot(self, side: int) -> np.ndarray:
-        """A foot's contact midpoint, on the flat ground (z = 0) this stand-in assumes."""
+        """A foot's contact midpoint, on the flat ground (z = 0) unless ``measured_ground``."""
         p = self.m.foot_center(side).copy()
-        p[2] = 0.0
+        if not self.measured_ground:
+            p[2] = 0.0
         return p
+
+    def seed(self, plan: mpfc_output_t) -> None:
+        """Take over the gait where ``plan`` (the MPFC's last) has it: the same stance foot,
+        phase, switch times and heading, so the swing in progress lands where it was going."""
+        self.stance = int(plan.stance)
+        self.single = int(plan.gait_state) in (0, 1)
+        self.t_switch = float(plan.prev_switch_time_s)
+        self.t_next = float(plan.next_switch_time_s)
+        self.stance_pos = np.array(plan.stance_foot_world, dtype=float)
+        self.yaw = float(plan.stance_yaw)
 
     def plan(self, t: float, q: np.ndarray, v: np.ndarray) -> mpfc_output_t:
         """Advance the gait clock to t and return the plan for the state (q, v)."""
@@ -72,8 +88,11 @@ class StandInPlanner:
         mass, H, l = m.mass, self.H, self.lam  # noqa: E741
         mujoco.mj_subtreeVel(m.m, m.d)
         L = m.d.subtree_angmom[m.pelvis_body] + mass * np.cross(m.com - self.stance_pos, m.com_vel)
-        x = m.com[0:2] - self.stance_pos[0:2]
-        Lx, Ly = float(L[0]), float(L[1])
+        # in the heading frame (x forward, y left): rotate world x, y by -yaw
+        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
+        dx, dy = m.com[0] - self.stance_pos[0], m.com[1] - self.stance_pos[1]
+        x = np.array((cy * dx + sy * dy, -sy * dx + cy * dy))
+        Lx, Ly = cy * float(L[0]) + sy * float(L[1]), -sy * float(L[0]) + cy * float(L[1])
         # Predict to the next touchdown: the OSC's double stance has no horizontal CoM task, so
         # the CoM coasts with constant L through it; single stance is the ALIP pendulum (1).
         mH = mass * H
@@ -96,17 +115,12 @@ class StandInPlanner:
         Lx_des = sign * mH * (self.w / 2) * l * math.tanh(l * self.t_ss / 2) - mH * self.vdes[1]
         x0 = (Ly_des - cn * LyT) / (mH * l * sn) - LyT * self.t_ds / mH
         y0 = (cn * LxT - Lx_des) / (mH * l * sn) + LxT * self.t_ds / mH
-        target = np.array([self.stance_pos[0] + xT - x0, self.stance_pos[1] + yT - y0, 0.0])
-        # keep the feet from crossing and from stretching too far
-        base = self.stance_pos[1]
-        off = target[1] - base
-        if nxt == RIGHT:
-            off = min(max(off, -0.6), -0.08)
-        else:
-            off = max(min(off, 0.6), 0.08)
-        target[1] = base + off
-        target[0] = self.stance_pos[0] + max(min(target[0] - self.stance_pos[0], 0.4), -0.4)
-        target[2] = self.stance_pos[2]
+        # the step in the heading frame; keep the feet from crossing and from stretching
+        fwd, side = xT - x0, yT - y0
+        side = min(max(side, -0.6), -0.08) if nxt == RIGHT else max(min(side, 0.6), 0.08)
+        fwd = max(min(fwd, 0.4), -0.4)
+        target = np.array([self.stance_pos[0] + cy * fwd - sy * side,
+                           self.stance_pos[1] + sy * fwd + cy * side, self.stance_pos[2]])
         self.next_pos = target
 
         msg = mpfc_output_t()
@@ -119,7 +133,7 @@ class StandInPlanner:
         msg.stance_foot_world = self.stance_pos.tolist()
         msg.next_footstep_world = target.tolist()
         msg.next_footstep = (target - self.stance_pos).tolist()
-        msg.stance_yaw = 0.0
+        msg.stance_yaw = self.yaw
         msg.prev_switch_time_s = float(self.t_switch)
         msg.next_switch_time_s = float(self.t_next)  # liftoff in double stance, else touchdown
         msg.ankle_torque = 0.0
