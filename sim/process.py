@@ -66,7 +66,7 @@ class SimSettings:
     camera: CameraConfig = field(default_factory=CameraConfig)
     camera_enabled: bool = True
     camera_render: CameraRender = "auto"  # auto: a child process in real time, inline in lockstep
-    lockstep_timeout_s: float = 1.0
+    lockstep_timeout_s: float = 0.01  # gains/sim.yaml lockstep.timeout_s
     #: real time: after a stall (this VM's, or a busy core) step the physics through up to this
     #: much missed sim time in one tick, so sim time keeps up with the wall clock as a real
     #: robot's would; a longer stall is lost (counted) and the real-time factor shows it
@@ -203,7 +203,7 @@ def load_gains(path: str | Path | None) -> SimSettings:
         sim=sim, camera=cam, camera_enabled=cam_on, camera_render=render,
         catch_up_s=_num(file, "realtime.catch_up_ms", rt.get("catch_up_ms", 2.0), lo=0.0,
                         hi=100.0) / 1000.0,
-        lockstep_timeout_s=_num(file, "lockstep.timeout_s", lock.get("timeout_s", 1.0),
+        lockstep_timeout_s=_num(file, "lockstep.timeout_s", lock.get("timeout_s", 0.01),
                                 lo=1e-3, hi=3600.0),
         steps_per_command=int(_num(file, "lockstep.steps_per_command",
                                    lock.get("steps_per_command", 1), lo=1, hi=100, integer=True)),
@@ -529,7 +529,9 @@ class SimNode(Node):
         return {
             "sim_time_s": c.time,
             "steps": c.steps,
-            "packets_sent": tpc.link.sent,
+            # datagrams: new states and lockstep resends (a resend keeps its seq)
+            "packets_sent": tpc.link.sent + tpc.timeouts,
+            "packets_resent": tpc.timeouts,
             "commands_received": tpc.link.received,
             "commands_lost": tpc.link.lost,
             "commands_malformed": tpc.link.malformed,

@@ -400,7 +400,7 @@ class TargetPC:
         """
         if data is None:
             self.timeouts += 1
-            if self.timeouts <= 10 or self.timeouts % 100 == 0:
+            if self.timeouts <= 10 or self.timeouts % 1000 == 0:
                 log.warning("lockstep: no command answered state seq %d within the timeout "
                             "(%d timeouts); resending it", self.out.seq, self.timeouts)
             return self.out.view

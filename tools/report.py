@@ -373,10 +373,47 @@ def _realtime(
         if len(et) >= 2:
             d_sent = _delta_between(tt, sent, et[0], et[-1])
             out["states_per_packet"] = (pub[-1] - pub[0]) / d_sent if d_sent > 0 else 0.0
+    out["link"] = _link(by_proc)
     checks = {"rtf": "rtf_min", "states_per_packet": "states_per_packet_min",
               "torques_per_step": "torques_per_step_min"}
     out["budget"] = {k: budgets.realtime[v] for k, v in checks.items() if v in budgets.realtime}
     out["within_budget"] = all(out.get(k, 0.0) >= lim for k, lim in out["budget"].items())
+    return out
+
+
+#: the UDP link's two directions: (name, sender, its sent counter, receiver, its received
+#: counter, the receiver's count of gaps in the sender's sequence numbers)
+LINKS = (
+    ("target PC -> estimator", "sim", "packets_sent", "state_estimator", "packets_received",
+     "packets_lost"),
+    ("torque bridge -> target PC", "torque_bridge", "packets_sent", "sim", "commands_received",
+     "commands_lost"),
+)
+
+
+def _link(by_proc: dict[str, tuple[list[Any], list[int]]]) -> dict[str, dict[str, float]]:
+    """Datagrams each way over the span both ends reported: sent by one end, received by the
+    other, the difference (lost on the wire or in a full socket buffer: what an 8-bit seq
+    cannot tell after a resend) and the receiver's own count of sequence gaps. Counters are
+    interpolated at the span's ends, so the two processes' reports need not coincide."""
+    out: dict[str, dict[str, float]] = {}
+    for name, tx, sent_key, rx, recv_key, gap_key in LINKS:
+        if tx not in by_proc or rx not in by_proc:
+            continue
+        st, sv = _counter_series(*by_proc[tx], sent_key)
+        rt_, rv = _counter_series(*by_proc[rx], recv_key)
+        gt, gv = _counter_series(*by_proc[rx], gap_key)
+        if len(st) < 2 or len(rt_) < 2:
+            continue
+        t0, t1 = max(st[0], rt_[0]), min(st[-1], rt_[-1])
+        if t1 <= t0:
+            continue
+        sent = float(np.interp(t1, st, sv) - np.interp(t0, st, sv))
+        recv = float(np.interp(t1, rt_, rv) - np.interp(t0, rt_, rv))
+        gaps = float(np.interp(t1, gt, gv) - np.interp(t0, gt, gv)) if len(gt) >= 2 else 0.0
+        out[name] = {"sent": sent, "received": recv, "lost": max(sent - recv, 0.0),
+                     "lost_ratio": max(sent - recv, 0.0) / sent if sent > 0 else 0.0,
+                     "seq_gaps": gaps, "span_s": (t1 - t0) / 1e6}
     return out
 
 
@@ -405,7 +442,8 @@ def print_cpu(cpu: dict[str, Any], out: Any = sys.stdout) -> None:
 
 def print_realtime(rt: dict[str, Any], out: Any = sys.stdout) -> None:
     """Whether the sim kept wall-clock time and the chain answered every packet."""
-    if not rt or len(rt) <= 2:
+    if not rt or not any(k in rt for k in ("rtf", "states_per_packet", "torques_per_step",
+                                            "link")):
         return
     w = out.write
     w("\nReal time (from the sim's and the estimator's counters, in the CPU table's window)\n"
@@ -418,6 +456,15 @@ def print_realtime(rt: dict[str, Any], out: Any = sys.stdout) -> None:
         lim = rt["budget"].get(key)
         verdict = "" if lim is None else ("ok" if rt[key] >= lim else "UNDER")
         w(f"{label:<28}{rt[key]:>8.4f}  {'' if lim is None else f'>={lim:g}'} {verdict}\n")
+    links = rt.get("link") or {}
+    if links:
+        w("\nUDP link (datagrams over the span both ends reported; lost = sent - received)\n"
+          "--------\n")
+        w(f"{'direction':<28}{'sent':>9}{'received':>10}{'lost':>8}{'lost %':>8}"
+          f"{'seq gaps':>10}\n")
+        for name, r in links.items():
+            w(f"{name:<28}{r['sent']:>9.0f}{r['received']:>10.0f}{r['lost']:>8.0f}"
+              f"{100 * r['lost_ratio']:>8.2f}{r['seq_gaps']:>10.0f}\n")
 
 
 def _pcts(a: np.ndarray, prefix: str) -> dict[str, float]:
@@ -498,6 +545,12 @@ def flatten(rep: dict[str, Any]) -> dict[str, Any]:
     for k in ("rtf", "states_per_packet", "torques_per_step"):
         if k in (rep.get("realtime") or {}):
             flat[f"realtime_{k}_ratio"] = rep["realtime"][k]
+    for name, r in ((rep.get("realtime") or {}).get("link") or {}).items():
+        key = re.sub(r"[^0-9A-Za-z]+", "_", name).strip("_")
+        flat[f"link_{key}_sent_count"] = r["sent"]
+        flat[f"link_{key}_lost_count"] = r["lost"]
+        flat[f"link_{key}_lost_ratio"] = r["lost_ratio"]
+        flat[f"link_{key}_seq_gaps_count"] = r["seq_gaps"]
     return flat
 
 

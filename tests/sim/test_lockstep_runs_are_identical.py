@@ -40,7 +40,7 @@ def test_two_lockstep_runs_with_the_same_commands_are_identical(driver_factory) 
 def test_lockstep_ignores_stale_answers_and_resends_on_timeout(driver_factory) -> None:
     drv = driver_factory("lockstep", {"terrain": "flat"})
     node = drv.node
-    assert node.trigger_role == "command" and node.trigger_timeout_s == 1.0
+    assert node.trigger_role == "command" and node.trigger_timeout_s == 0.01
     first = drv.published["robot_output"][-1]
     state = OutputPacket().decode(first)
     drv.tick(encode_input(0, (state.seq + 5) & 0xFF, np.zeros(10)))  # answers no state of ours

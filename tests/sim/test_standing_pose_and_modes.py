@@ -41,7 +41,7 @@ def test_make_node_is_periodic_in_realtime_and_command_driven_in_lockstep(driver
     rt = driver_factory("realtime", {"terrain": "terrains/flat.yaml"}).node
     assert rt.trigger_role is None and rt.period_s == 0.0005
     ls = driver_factory("lockstep", {"terrain": "stones", "terrain_seed": 2}).node
-    assert ls.trigger_role == "command" and ls.trigger_timeout_s == 1.0
+    assert ls.trigger_role == "command" and ls.trigger_timeout_s == 0.01
     assert ls.settings.terrain.seed == 2
     assert set(rt.outputs) == {"robot_output", "ground_truth", "depth"}
     assert rt.inputs == {"command": bytes}

@@ -72,3 +72,34 @@ def test_the_cpu_window_opens_after_the_last_process_settles_and_closes_at_the_f
     assert abs(dcpu / dwall - 0.3) < 1e-9
     assert _span(ts, cpu)[0] / _span(ts, cpu)[1] > 0.5
     assert _common_window([(0, 3 * s), (2 * s, 5 * s)]) is None  # too short to judge
+
+
+def test_the_udp_link_table_counts_what_one_end_sent_and_the_other_never_got():
+    """Each direction: datagrams sent by one end against received by the other, over the span
+    both reported, interpolated at its ends (the two processes report at different times),
+    beside the receiver's own count of sequence gaps (blind to a lockstep resend)."""
+    from lcmtypes import loop_timing_t
+    from tools.report import _link
+
+    def series(counters: dict[str, float], rate: float, t0_s: float, n: int, dt_s: float):
+        msgs, ts = [], []
+        for k in range(n):
+            m = loop_timing_t()
+            m.counter_names = list(counters)
+            m.counter_values = [v * rate * k * dt_s for v in counters.values()]
+            m.num_counters = len(counters)
+            msgs.append(m)
+            ts.append(round((t0_s + k * dt_s) * 1e6))
+        return msgs, ts
+
+    # the sim sends 2000 datagrams/s from t = 0; the estimator, up from t = 3 s, gets 95 %
+    sim = series({"packets_sent": 1.0, "commands_received": 0.9, "commands_lost": 0.1},
+                 2000.0, 0.0, 200, 0.1)
+    est = series({"packets_received": 0.95, "packets_lost": 0.0}, 2000.0, 3.03, 150, 0.1)
+    bridge = series({"packets_sent": 1.0}, 2000.0, 2.97, 150, 0.1)
+    link = _link({"sim": sim, "state_estimator": est, "torque_bridge": bridge})
+    down = link["target PC -> estimator"]
+    assert abs(down["sent"] - 2000.0 * down["span_s"]) < 1.0
+    assert abs(down["lost_ratio"] - 0.05) < 1e-3 and down["seq_gaps"] == 0.0
+    up = link["torque bridge -> target PC"]
+    assert abs(up["lost_ratio"] - 0.1) < 1e-3 and abs(up["seq_gaps"] - 0.1 * up["sent"]) < 1.0
