@@ -34,6 +34,7 @@ from typing import Any, Literal
 import yaml
 
 from lcmtypes import depth_frame_t, foothold_set_t, ground_truth_t
+from runtime.config import safe_load
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
@@ -155,7 +156,7 @@ def load_gains(path: str | Path | None) -> SimSettings:
         return SimSettings()
     file = str(path)
     try:
-        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+        doc = safe_load(Path(path).read_text(encoding="utf-8")) or {}
     except OSError as exc:
         raise ConfigError(file, "gains_file", f"cannot read: {exc.strerror}") from exc
     except yaml.YAMLError as exc:

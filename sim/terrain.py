@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from runtime.config import safe_load
 from runtime.errors import ConfigError
 
 #: Table I of Acosta & Posa: uniform bounds of the stepping-stone samples (metres).
@@ -406,7 +407,7 @@ def load_terrain(path: str | Path) -> Terrain:
     """
     file = str(path)
     try:
-        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+        doc = safe_load(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
         raise ConfigError(file, "terrain", f"cannot read the file: {exc.strerror}") from exc
     except yaml.YAMLError as exc:

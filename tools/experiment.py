@@ -33,7 +33,7 @@ import yaml
 
 from lcmtypes import command_t, ground_truth_t, robot_state_t
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
-from runtime.config import HW_CONFIG_DIR, load_profile
+from runtime.config import HW_CONFIG_DIR, load_profile, safe_load
 from runtime.config_types import Profile
 from runtime.harness import Binding, Harness
 from runtime.node import Node
@@ -160,7 +160,7 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
     if name == "stairs" and depth is not None:
         # hw_config/terrains/stairs.yaml with another tread depth (Fig. 11: 27 cm with ground
         # truth, 40 cm with perception)
-        doc = yaml.safe_load((HW_CONFIG_DIR / "terrains" / "stairs.yaml").read_text())
+        doc = safe_load((HW_CONFIG_DIR / "terrains" / "stairs.yaml").read_text())
         doc["params"]["depth"] = float(depth)
         path = work / "stairs.yaml"
         path.write_text(yaml.safe_dump(doc, sort_keys=False))

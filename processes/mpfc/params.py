@@ -9,6 +9,7 @@ from typing import Any
 
 import yaml
 
+from runtime.config import safe_load
 from runtime.errors import ConfigError
 
 DEFAULT_YAML = Path(__file__).resolve().parents[2] / "hw_config" / "gains" / "mpfc.yaml"
@@ -66,7 +67,7 @@ class MpfcParams:
         """
         path = Path(path)
         try:
-            raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+            raw = safe_load(path.read_text(encoding="utf-8"))
         except OSError as exc:
             raise ConfigError(str(path), "<file>", f"cannot read: {exc}") from exc
         except yaml.YAMLError as exc:

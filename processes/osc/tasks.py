@@ -18,6 +18,7 @@ import numba
 import numpy as np
 import yaml
 
+from runtime.config import safe_load
 from runtime.errors import ConfigError
 
 from .qp import ROW_COM, ROW_CONTACT, ROW_DOF, QpWeights
@@ -121,7 +122,7 @@ class OscParams:
         """Load and validate the gains file; a bad value raises ``ConfigError``."""
         p = Path(path) if path is not None else DEFAULT_GAINS_FILE
         try:
-            raw = yaml.safe_load(p.read_text(encoding="utf-8"))
+            raw = safe_load(p.read_text(encoding="utf-8"))
         except OSError as e:
             raise ConfigError(str(p), "<file>", f"cannot read: {e}", "a readable YAML file") from e
         except yaml.YAMLError as e:

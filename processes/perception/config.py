@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 
 import yaml
 
+from runtime.config import safe_load
 from runtime.errors import ConfigError
 
 T = TypeVar("T")
@@ -83,7 +84,7 @@ def load_params(cls: type[T], path: str | os.PathLike[str], profile: str | None 
     """
     file = str(path)
     try:
-        raw = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+        raw = safe_load(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
         raise ConfigError(file, "<file>", f"cannot read: {exc.strerror}") from exc
     except yaml.YAMLError as exc:
