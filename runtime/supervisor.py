@@ -44,6 +44,8 @@ from runtime.scheduling import describe, pin_to_supervisor_host
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 FAILED_STATES = ("failed", "crash_loop")
+#: what SUPERVISOR_ORDERS may ask of a process (or of "*": all)
+ORDERS = ("start", "stop", "restart")
 _PR_SET_PDEATHSIG = 1
 
 
@@ -173,6 +175,9 @@ class Supervisor:
             self._add_helper("dashboard", cmd, first=True)
         self.state = "starting"
         self.t0 = time.monotonic()
+        #: TIMING messages and orders not taken (malformed, unknown sender or process), by kind
+        self.refused: dict[str, int] = {}
+        self._refused_last: dict[str, str] = {}
         self._stop_requested = False
         self._status_seq = 0
         self._me = psutil.Process()
@@ -204,13 +209,26 @@ class Supervisor:
             self.order.append(name)
 
     # -- bus callbacks -------------------------------------------------------------------------
+    def _refuse(self, what: str, why: str) -> None:
+        """Count a TIMING message or an order that was not taken, and say so (the 1st, 10th,
+        100th, then every 1000th)."""
+        n = self.refused[what] = self.refused.get(what, 0) + 1
+        self._refused_last[what] = why
+        if n in (1, 10, 100) or n % 1000 == 0:
+            self.out.write(f"ignored {what} #{n}: {why}\n")
+
     def _on_timing(self, _channel: str, data: bytes) -> None:
         try:
             msg = loop_timing_t.decode(data)
-        except Exception:
+        except Exception as exc:
+            self._refuse("TIMING", f"malformed ({type(exc).__name__})")
             return
         child = self.children.get(msg.process)
-        if child is None or child.popen is None or msg.header.source != child.proc.name:
+        if child is None or msg.header.source != child.proc.name:
+            self._refuse("TIMING", f"from {msg.header.source!r} for process {msg.process!r}, "
+                         "not one this supervisor runs")
+            return
+        if child.popen is None:  # a last report of a process being stopped: nothing to take
             return
         child.last_msg_ns = time.monotonic_ns()
         if msg.ticks or msg.window_s > 0.5:  # not the set-up heartbeat's empty window
@@ -226,7 +244,14 @@ class Supervisor:
     def _on_order(self, _channel: str, data: bytes) -> None:
         try:
             msg = supervisor_orders_t.decode(data)
-        except Exception:
+        except Exception as exc:
+            self._refuse("order", f"malformed ({type(exc).__name__})")
+            return
+        if msg.order not in ORDERS:
+            self._refuse("order", f"unknown order {msg.order!r} (known: {', '.join(ORDERS)})")
+            return
+        if msg.process != "*" and msg.process not in self.children:
+            self._refuse("order", f"{msg.order} of unknown process {msg.process!r}")
             return
         targets = list(self.children) if msg.process == "*" else [msg.process]
         for name in targets:
@@ -640,5 +665,8 @@ class Supervisor:
                            f"time(s); last: {c.last_crash} (see its log)\n")
             if name not in bad:
                 bad.append(name)
+        for what, n in self.refused.items():
+            self.out.write(f"ignored: {n} {what} message(s), malformed or not from this stack; "
+                           f"last: {self._refused_last[what]}\n")
         self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")
         self.out.flush()

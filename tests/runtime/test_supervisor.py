@@ -188,3 +188,41 @@ def test_readiness_comes_from_timing_and_the_cpu_column_is_a_real_average(lcm_ur
     assert ticker[-1].cpu_s > ticker[0].cpu_s > 0
     me = next(p for p in running[-1].processes if p.name == "supervisor")
     assert 0 <= me.cpu_percent < 10.0 and me.cpu_s > 0  # (psutil counts in 10 ms ticks)
+
+
+def test_garbage_spoofed_timing_and_unknown_orders_are_ignored_and_counted(lcm_url, tmp_path):
+    """TIMING for a process the supervisor does not run, or not sent by it, feeds nothing;
+    an order that does not decode, names no process of the stack or asks for nothing it
+    knows is not carried out; each is counted and the summary says so."""
+    import io
+
+    from lcmtypes import loop_timing_t, supervisor_orders_t
+    from runtime.config import load_profile
+    from runtime.supervisor import Supervisor
+
+    out = io.StringIO()
+    sup = Supervisor(load_profile(PROFILES / "supervised.yaml"), log_dir=tmp_path, out=out,
+                     live_table=False)
+    try:
+        spoof = loop_timing_t()
+        spoof.process, spoof.header.source, spoof.status = "ticker", "not-ticker", "fine"
+        stranger = loop_timing_t()
+        stranger.process = stranger.header.source = "intruder"
+        for raw in (b"\x00garbage", spoof.encode(), stranger.encode()):
+            sup._on_timing("TIMING", raw)
+        assert sup.children["ticker"].status != "fine"
+        bad = supervisor_orders_t()
+        bad.process, bad.order = "ticker", "explode"
+        nobody = supervisor_orders_t()
+        nobody.process, nobody.order = "intruder", "start"
+        for raw in (b"\x01junk", bad.encode(), nobody.encode()):
+            sup._on_order("SUPERVISOR_ORDERS", raw)
+        assert all(c.popen is None for c in sup.children.values())  # nothing was started
+        assert sup.refused == {"TIMING": 3, "order": 3}
+        sup._print_summary()
+        text = out.getvalue()
+        assert "ignored: 3 TIMING message(s)" in text and "ignored: 3 order message(s)" in text
+        assert "ignored order #1: malformed" in text  # said as it happened
+        assert "last: start of unknown process 'intruder'" in text
+    finally:
+        sup.bus.close()
