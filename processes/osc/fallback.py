@@ -9,9 +9,8 @@ place (desired velocity 0) on the ground it stands on. The MPFC gets the robot b
 fresh plan of its is in double stance on the same new stance foot as the robot is: the gait
 phases agree, so the hand-back is a plan like the next one.
 
-(Standing, rather than stepping in place, would be the quieter wait, but the hand-back from
-walking to the standing controller is not robust yet: measured in the harness, the robot
-stood ~1 s and fell, with a command to stand as well as here; see docs/reports/faults.md.)
+(Standing would be the quieter wait; stepping in place keeps a gait the MPFC can take back
+without the stand-to-walk hand-over, and is what was measured: see docs/reports/faults.md.)
 """
 
 from __future__ import annotations
