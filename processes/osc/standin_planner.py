@@ -33,6 +33,9 @@ class StandInPlanner:
         self.m = model
         self.measured_ground = measured_ground
         self.yaw = 0.0  # the heading of the stance frame the gait is planned in
+        #: stay in double stance (lift-off postponed, 50 ms ahead at each call): the plan
+        #: fallback waits there for the MPFC's gait to come round to the same stance foot
+        self.hold_double = False
         self.vdes = np.array(vdes, dtype=float)
         self.w = step_width
         self.H = H
@@ -72,6 +75,8 @@ class StandInPlanner:
             self.single = False
             self.stance = LEFT
             self.stance_pos = self._foot(LEFT)
+        if self.hold_double and not self.single and self.t_next < t + 0.05:
+            self.t_next = t + 0.05
         if self.single and t >= self.t_next:  # planned touchdown: the swing foot lands
             self.stance = 1 - self.stance
             self.stance_pos = self._foot(self.stance)
