@@ -120,6 +120,27 @@ def load_yaml(path: Path) -> dict[str, Any]:
     return data
 
 
+def param_number(proc: ProcessConfig, name: str, *, default: Any = None,
+                 lo: float | None = None, hi: float | None = None, lo_open: bool = False,
+                 hint: str | None = None) -> Any:
+    """``proc.params[name]`` as a number within [lo, hi] (``default`` when absent or null);
+    otherwise a ``ConfigError`` naming the file, ``processes.NAME.params.KEY`` and the range
+    (with ``hint``, what the value is for). One reader for every process's numeric params."""
+    try:
+        return _Checker(proc.source_file).number(proc.params, proc.key("params"), name,
+                                                 default=default, lo=lo, hi=hi, lo_open=lo_open)
+    except ConfigError as exc:
+        if hint is None:
+            raise
+        allowed = f"{exc.allowed}: {hint}" if exc.allowed else hint
+        raise ConfigError(exc.file, exc.key, exc.problem, allowed) from None
+
+
+def param_bool(proc: ProcessConfig, name: str, default: bool) -> bool:
+    """``proc.params[name]`` as true or false, else a ``ConfigError`` naming the key."""
+    return _Checker(proc.source_file).boolean(proc.params, proc.key("params"), name, default)
+
+
 def process_gains(proc: ProcessConfig, default: Path, allow_params: bool = False) -> Path:
     """The gains file of ``proc`` (absolute since load time), or ``default``. Processes whose
     settings all live in their gains file pass ``allow_params=False``: any ``params`` key is

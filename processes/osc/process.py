@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from lcmtypes import command_t, mpfc_output_t, osc_debug_t, robot_state_t, torque_command_t
+from runtime.config import param_bool, param_number
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
@@ -212,12 +213,6 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
     if path is None:
         candidate = profile.resolve("gains/osc.yaml")
         path = candidate if candidate.exists() else DEFAULT_GAINS_FILE
-    hold = proc.params.get("hold_until_plan", False)
-    if not isinstance(hold, bool):
-        raise ConfigError(str(proc.source_file), proc.key("params", "hold_until_plan"),
-                          f"must be true or false, got {hold!r}", "true, false")
-    stand = proc.params.get("stand_first_s", 0.0)
-    if isinstance(stand, bool) or not isinstance(stand, int | float) or not 0 <= stand <= 60:
-        raise ConfigError(str(proc.source_file), proc.key("params", "stand_first_s"),
-                          f"not a duration: {stand!r}", "seconds in [0, 60]")
+    hold = param_bool(proc, "hold_until_plan", False)
+    stand = param_number(proc, "stand_first_s", default=0.0, lo=0.0, hi=60.0)
     return OscNode(OscParams.from_yaml(path), start, hold, float(stand))

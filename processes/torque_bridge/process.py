@@ -37,7 +37,7 @@ from runtime.cassie_packets import (
     InputPacket,
     LinkCounter,
 )
-from runtime.config import process_gains
+from runtime.config import param_number, process_gains
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 from runtime.node import Context, Inbox, Node
@@ -258,19 +258,11 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
         if key not in ("answer_on", "fill_hz", "release_after_s"):
             raise ConfigError(str(proc.source_file), proc.key("params", str(key)),
                               "unknown parameter", "answer_on, fill_hz, release_after_s")
-    after = proc.params.get("release_after_s")
-    if after is not None and (isinstance(after, bool) or not isinstance(after, int | float)
-                              or not 0 <= after <= 60):
-        raise ConfigError(str(proc.source_file), proc.key("params", "release_after_s"),
-                          f"not a duration: {after!r}",
-                          "seconds in [0, 60] of the controller standing before the holder "
-                          "is released (with the sim's params.holder_release: manual)")
-    fill_hz = proc.params.get("fill_hz")
-    if fill_hz is not None and (isinstance(fill_hz, bool) or not isinstance(fill_hz, int | float)
-                                or not 0 < fill_hz <= 2000):
-        raise ConfigError(str(proc.source_file), proc.key("params", "fill_hz"),
-                          f"not a rate: {fill_hz!r}",
-                          "a rate in Hz in (0, 2000] (the OSC's max_rate_hz), or leave it out")
+    after = param_number(proc, "release_after_s", lo=0.0, hi=60.0,
+                         hint="seconds of the controller standing before the holder is "
+                              "released (with the sim's params.holder_release: manual)")
+    fill_hz = param_number(proc, "fill_hz", lo=0.0, hi=2000.0, lo_open=True,
+                           hint="a rate in Hz (the OSC's max_rate_hz), or leave it out")
     if answer not in choices:
         raise ConfigError(str(proc.source_file), proc.key("params", "answer_on"),
                           f"unknown value {answer!r}", ", ".join(choices))
