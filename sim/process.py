@@ -46,7 +46,15 @@ from sim.camera import (
     DepthFrame,
     ProcessDepthRenderer,
 )
-from sim.target_pc import HolderConfig, Mode, PushConfig, SimConfig, TargetPC, make_core
+from sim.target_pc import (
+    RELEASE_ON,
+    HolderConfig,
+    Mode,
+    PushConfig,
+    SimConfig,
+    TargetPC,
+    make_core,
+)
 from sim.terrain import Terrain
 
 log = logging.getLogger(__name__)
@@ -177,10 +185,9 @@ def load_gains(path: str | Path | None) -> SimSettings:
     if "enabled" in hold:
         hkw["enabled"] = _bool(file, "holder.enabled", hold["enabled"])
     if "release_on" in hold:
-        choices = ("first_command", "first_nonzero_command", "manual")
-        if hold["release_on"] not in choices:
+        if hold["release_on"] not in RELEASE_ON:
             raise ConfigError(file, "holder.release_on", f"unknown value {hold['release_on']!r}",
-                              ", ".join(choices))
+                              ", ".join(RELEASE_ON))
         hkw["release_on"] = hold["release_on"]
     sim = SimConfig(
         push=_push(file, doc.get("push")),
@@ -602,10 +609,9 @@ def make_node(proc: ProcessConfig, profile: Profile) -> Node:
         settings = replace(settings, sim=replace(settings.sim, push=push))
     if "holder_release" in proc.params:
         rel = proc.params["holder_release"]
-        choices = ("first_command", "first_nonzero_command", "manual")
-        if rel not in choices:
+        if rel not in RELEASE_ON:
             raise ConfigError(file, proc.key("params", "holder_release"),
-                              f"unknown value {rel!r}", allowed=", ".join(choices))
+                              f"unknown value {rel!r}", allowed=", ".join(RELEASE_ON))
         settings = replace(settings, sim=replace(
             settings.sim, holder=replace(settings.sim.holder, release_on=rel)))
     rate = proc.rate_hz if proc.rate_hz else 2000.0

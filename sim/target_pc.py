@@ -22,7 +22,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, get_args
 
 import mujoco
 import numba
@@ -46,6 +46,7 @@ from sim.terrain import Terrain
 log = logging.getLogger(__name__)
 
 ReleaseOn = Literal["first_command", "first_nonzero_command", "manual"]
+RELEASE_ON: tuple[str, ...] = get_args(ReleaseOn)  # the values a config may name
 
 
 @dataclass(frozen=True)

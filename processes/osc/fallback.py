@@ -22,13 +22,13 @@ from typing import Any
 
 import numpy as np
 
+from .controller import WALKING
 from .model import CassieModel
 from .standin_planner import StandInPlanner
+from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT
 
-#: the controller's walking mode (controller.WALKING), repeated to keep this module light
-_WALKING = 0
 #: mpfc_output_t.gait_state of double stance after a left / right touchdown
-_DS = (2, 3)
+_DS = (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT)
 #: the longest wait in double stance for the MPFC's gait (more than its two-step period)
 MAX_HOLD_S = 1.0
 
@@ -41,7 +41,7 @@ def plan_age_s(t_s: float, plan: Any | None) -> float:
 
 
 class PlanFallback:
-    """Decides, per tick, which plan the controller follows and whether it should stand."""
+    """Decides, per tick, which plan the controller follows: the MPFC's, or its own."""
 
     def __init__(self, model: CassieModel, after_s: float) -> None:
         self.after_s = after_s
@@ -70,7 +70,7 @@ class PlanFallback:
                 return plan
             self._wait(t_s, fresh, own)
             return own
-        if fresh or mode != _WALKING or self._last_good is None:
+        if fresh or mode != WALKING or self._last_good is None:
             return plan
         self.active = True  # walking, and the plans stopped: take over
         self.engaged += 1
