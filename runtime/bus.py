@@ -35,7 +35,7 @@ from urllib.parse import parse_qsl, urlencode, urlparse, urlunparse
 import lcm
 
 from runtime.errors import BusError, MulticastRouteError
-from runtime.port_buffer import Policy, PortBuffer
+from runtime.port_buffer import Policy, PortBuffer, worth_logging
 from runtime.route import FIX_HINT, check_multicast_route, has_multicast_route, multicast_group
 from runtime.udpm import UdpmReceiver
 
@@ -106,7 +106,7 @@ class Subscription(PortBuffer):
     def _count_error(self, what: str) -> None:
         self.decode_errors += 1
         self.last_error = what
-        if self.decode_errors in (1, 10, 100, 1000) or self.decode_errors % 10000 == 0:
+        if worth_logging(self.decode_errors):
             log.warning(
                 "channel %s: dropped %s (%d so far)", self.channel, what, self.decode_errors
             )

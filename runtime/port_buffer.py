@@ -18,6 +18,12 @@ Policy = Literal["newest", "each"]
 log = logging.getLogger(__name__)
 
 
+def worth_logging(count: int) -> bool:
+    """Whether the ``count``-th bad message of a port is logged: the 1st, 10th, 100th and
+    1000th, then every 10000th (a flood must not flood the log)."""
+    return count in (1, 10, 100, 1000) or count % 10000 == 0
+
+
 class PortBuffer:
     """Newest-slot (``newest``) or bounded FIFO (``each``) of raw payloads.
 
@@ -72,7 +78,7 @@ class PortBuffer:
             return msg
         self.rejected += 1
         self.last_rejected = why
-        if self.rejected in (1, 10, 100, 1000) or self.rejected % 10000 == 0:
+        if worth_logging(self.rejected):
             log.warning("input %s: rejected a message at the edge: %s (%d so far)",
                         self.name or "?", why, self.rejected)
         return None

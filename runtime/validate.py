@@ -141,8 +141,7 @@ class InputCheck:
             if "header" not in msg_type.__slots__:  # type: ignore[attr-defined]
                 raise ConfigError(source, f"{key}.utime_step_s",
                                   f"{msg_type.__name__} has no header to time")
-            # a range [lo, hi] as the other limits are written; the step allowed is hi
-            hi = float(step[1]) if isinstance(step, list | tuple) else float(step)
+            hi = float(step[1])  # a range (0, hi) as the other limits: the step allowed is hi
             if not hi > 0.0:
                 raise ConfigError(source, f"{key}.utime_step_s", f"{step!r} is not > 0 s")
         self._max_step_us = None if step is None else round(hi * 1e6)
