@@ -272,7 +272,7 @@ def _correct_still(R: np.ndarray, v: np.ndarray, p: np.ndarray, d: np.ndarray, P
 
 
 @_jit
-def still_without_contact(gyro: np.ndarray, accel: np.ndarray, g: float, gyro_max: float,
+def _imu_at_rest(gyro: np.ndarray, accel: np.ndarray, g: float, gyro_max: float,
                           accel_tol: float) -> bool:
     """Whether one IMU sample reads at rest: no rotation and a specific force of ``g``."""
     w2 = gyro[0] * gyro[0] + gyro[1] * gyro[1] + gyro[2] * gyro[2]
@@ -738,8 +738,8 @@ def _still(N: np.ndarray, C: np.ndarray, utime: int, contact: bool, gyro: np.nda
            accel: np.ndarray) -> bool:
     """Whether the robot has been at rest with no foot down for ``C_STILL_AFTER_US``: the
     zero-velocity update applies (``_correct_still``). Keeps ``I_STILL_SINCE``."""
-    if contact or not still_without_contact(gyro, accel, -C[C_G + 2], C[C_STILL_GYRO],
-                                            C[C_STILL_ACCEL]):
+    if contact or not _imu_at_rest(gyro, accel, -C[C_G + 2], C[C_STILL_GYRO],
+                                   C[C_STILL_ACCEL]):
         N[I_STILL_SINCE] = -1
         return False
     if N[I_STILL_SINCE] < 0:
