@@ -665,8 +665,28 @@ class Supervisor:
                            f"time(s); last: {c.last_crash} (see its log)\n")
             if name not in bad:
                 bad.append(name)
+        for c in self.children.values():
+            for line in _degraded_lines(c.counters):
+                self.out.write(f"degraded: {c.proc.name}: {line}\n")
         for what, n in self.refused.items():
             self.out.write(f"ignored: {n} {what} message(s), malformed or not from this stack; "
                            f"last: {self._refused_last[what]}\n")
         self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")
         self.out.flush()
+
+
+def _degraded_lines(counters: dict[str, float]) -> list[str]:
+    """What a process's counters say it rode through (safe-mode episodes that cleared, plan
+    fallbacks, rejected inputs): not a failure of the run, but a reader should see it."""
+    lines = []
+    if (n := int(counters.get("safe_entries", 0))) > 0:
+        lines.append(f"{n} safe-mode episode(s), {int(counters.get('safe_recoveries', 0))} "
+                     "cleared by themselves")
+    if (n := int(counters.get("plan_fallbacks", 0))) > 0:
+        lines.append(f"walked on its own steps {n} time(s) without MPFC plans, handed back "
+                     f"{int(counters.get('plan_handbacks', 0))}")
+    if (n := int(counters.get("inputs_rejected", 0))) > 0:
+        lines.append(f"{n} input message(s) rejected at the edge")
+    if (n := int(counters.get("tick_errors", 0))) > 0:
+        lines.append(f"{n} tick(s) raised and were caught (previous output kept)")
+    return lines

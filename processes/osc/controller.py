@@ -4,8 +4,9 @@ Modes (as in ``torque_command_t.mode``): 0 walking, 1 standing, 2 safe. The cont
 standing; it hands over to walking when the command asks to walk and a fresh MPFC plan is in
 double stance (the robot is on both feet); it goes back to standing when the command or the
 plan asks to stand and both feet are down. A NaN state, a fall or a missing plan while
-walking latches safe mode (joint damping). Every published torque is finite and within the
-joint limits.
+walking puts it in safe mode (joint damping); a fall latches it, any other fault clears
+after ``safety.recover_s`` of good ticks and the robot walks (or stands) on. Every published
+torque is finite and within the joint limits.
 """
 
 from __future__ import annotations
@@ -89,6 +90,8 @@ class OscController:
         self.debug = OscDebug()
         self.stance = np.ones(4, dtype=bool)
         self.waiting = False  # walking asked, plan not yet in double stance
+        self._mode_before_safe = STANDING  # the mode a fault interrupted
+        self._safe_since = 0.0  # sim time safe mode began
         self._rigid_swing_springs = self.params.springs == "rigid_swing"
         self._q = np.zeros(m.nq)
         self._v = np.zeros(m.nv)
@@ -102,7 +105,7 @@ class OscController:
 
     # ------------------------------------------------------------------ public
     def reset(self) -> None:
-        """Clear a latched fault and restart from standing (operator action)."""
+        """Clear any fault, a fall too, and restart from standing (operator action)."""
         self.safety.reset()
         self.mode = STANDING
         self.standing.started = False
@@ -119,11 +122,12 @@ class OscController:
         t0 = time.perf_counter()
         dbg = self.debug
         self.log.reset()
+        self.safety.now = t_s
         fault = self.safety.check_state(q, v)
-        if fault is not None:
+        plan_ok = plan is not None and _plan_ok(plan)
+        if fault is not None and not self._recover(t_s, plan, command, plan_ok):
             return self._safe(q, v, fault, t0)
         m = self.model
-        plan_ok = plan is not None and _plan_ok(plan)
         phase = GaitPhase.from_plan(plan, t_s) if plan_ok else None
         swing = self._swing_leg(phase)
         if swing is not None:
@@ -242,6 +246,25 @@ class OscController:
                 self.standing.started = False
         return None
 
+    def _recover(self, t: float, plan: Any | None, command: Any | None, plan_ok: bool) -> bool:
+        """Leave safe mode once its fault clears (``SafetyMonitor.try_recover``): back to
+        walking when it walked before and a fresh walking plan and a walk command are there
+        (mid-swing too: the swing restarts from where the foot is), else standing. A fall
+        found on this tick puts it straight back."""
+        if not self.safety.try_recover():
+            return False
+        self.qp_failures = 0
+        self.walking.reset()
+        self.standing.started = False
+        plan_t = _plan_time(plan)
+        resume = (self._mode_before_safe == WALKING and plan_ok and command is not None
+                  and int(command.mode) == 0 and int(plan.gait_state) != GAIT_STANDING
+                  and (plan_t is None or t - plan_t <= self.params.safety.plan_timeout_s))
+        self.mode = WALKING if resume else STANDING
+        log.warning("OSC left safe mode after %.0f ms: %s", 1e3 * (t - self._safe_since),
+                    MODE_NAMES[self.mode])
+        return True
+
     def _feet_down(self, dz: float = 0.015, vz: float = 0.15) -> bool:
         """Both blades down (kinematic check, no contact sensing): every contact point within
         ``dz`` of the lowest one and moving slower than ``vz`` vertically."""
@@ -274,6 +297,9 @@ class OscController:
 
     def _safe(self, q: np.ndarray, v: np.ndarray, reason: str, t0: float) -> tuple[
             np.ndarray, OscDebug]:
+        if self.mode != SAFE:
+            self._mode_before_safe = self.mode
+            self._safe_since = self.safety.now
         self.mode = SAFE
         self.u[:] = self.safety.damping(v)
         dbg = self.debug

@@ -17,7 +17,7 @@ from lcmtypes import command_t, mpfc_output_t, osc_debug_t, robot_state_t, torqu
 from runtime.config import param_bool, param_number
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
-from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
+from runtime.node import HEALTH_FAULT, HEALTH_OK, HEALTH_WARNING, Context, Inbox, Node
 
 from .controller import SAFE, OscController
 from .fallback import PlanFallback
@@ -173,22 +173,29 @@ class OscNode(Node):
         return self._status
 
     def health(self) -> int:
-        """A fault in safe mode: the robot is no longer controlled."""
-        return HEALTH_FAULT if self.in_safe_mode else HEALTH_OK
+        """A fault after a fall (safe mode for good); a warning in safe mode that clears by
+        itself (a bad input or tick: ``safety.recover_s``)."""
+        if not self.in_safe_mode:
+            return HEALTH_OK
+        assert self.controller is not None
+        return HEALTH_FAULT if self.controller.safety.terminal else HEALTH_WARNING
 
     def counters(self) -> dict[str, float]:
-        """The controller's mode (0 walking, 1 standing, 2 safe, 3 off: waiting for a plan)."""
+        """The controller's mode (0 walking, 1 standing, 2 safe, 3 off: waiting for a plan),
+        the plan fallback's hand-overs, safe-mode episodes and recoveries."""
         c = self.controller
         if c is None:
             return {"mode": -1.0}
         fb = self.fallback
         return {"mode": float(OFF if self._hold_until_plan else c.mode),
                 "plan_fallbacks": float(fb.engaged if fb is not None else 0),
-                "plan_handbacks": float(fb.handed_back if fb is not None else 0)}
+                "plan_handbacks": float(fb.handed_back if fb is not None else 0),
+                "safe_entries": float(c.safety.entries),
+                "safe_recoveries": float(c.safety.recoveries)}
 
     @property
     def in_safe_mode(self) -> bool:
-        """True once a fault has latched the controller into joint damping."""
+        """True while a fault holds the controller in joint damping."""
         return self.controller is not None and self.controller.mode == SAFE
 
 

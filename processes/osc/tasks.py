@@ -95,6 +95,8 @@ class SafetyParams:
     #: walking with no plan newer than this: the OSC's own steps in place
     #: (``fallback.PlanFallback``); 0 turns it off (then plan_timeout_s latches safe mode)
     plan_fallback_s: float = 0.1
+    #: a fault other than a fall clears after this long (s, sim time) of good ticks
+    recover_s: float = 0.01
     damping: np.ndarray = field(
         default_factory=lambda: np.array([10.0, 10.0, 10.0, 10.0, 2.0] * 2)
     )
@@ -253,12 +255,14 @@ def _parse(raw: dict[str, Any], file: str) -> OscParams:
     f = raw.get("safety", {}) or {}
     if not isinstance(f, dict):
         raise ConfigError(file, "safety", "not a mapping")
-    _only(f, ("fall_height", "plan_timeout_s", "plan_fallback_s", "damping"), file, "safety.")
+    _only(f, ("fall_height", "plan_timeout_s", "plan_fallback_s", "recover_s", "damping"),
+          file, "safety.")
     timeout = _num(f, "plan_timeout_s", file, "safety.", 0.001, 5.0, 0.2)
     safety = SafetyParams(
         fall_height=_num(f, "fall_height", file, "safety.", 0.0, 1.0, 0.6),
         plan_timeout_s=timeout,
         plan_fallback_s=_num(f, "plan_fallback_s", file, "safety.", 0.0, timeout, 0.1),
+        recover_s=_num(f, "recover_s", file, "safety.", 0.0005, 10.0, 0.01),
         damping=_vec(f.get("damping", [10.0, 10.0, 10.0, 10.0, 2.0] * 2), 10, file,
                      "safety.damping"),
     )

@@ -47,11 +47,60 @@ def test_nan_state_gives_finite_damping_torques_and_safe_status(q_stand):
     v[osc.model.motor_dof[3]] = np.nan
     u, dbg = osc.update(0.0005, q, v)
     assert np.all(np.isfinite(u)) and u[3] == 0.0
-    # the fault is latched: a good state afterwards stays in safe mode until reset()
-    u, dbg = osc.update(0.001, q_stand, np.zeros(32))
+    # a good state right after stays in safe mode: recover_s of good ticks first
+    recover = osc.params.safety.recover_s
+    u, dbg = osc.update(0.0005 + 0.5 * recover, q_stand, np.zeros(32))
     assert dbg.mode == SAFE
+    u, dbg = osc.update(0.0005 + recover, q_stand, np.zeros(32))
+    assert dbg.mode == STANDING, dbg.status
+    assert osc.safety.entries == 1 and osc.safety.recoveries == 1
+
+
+def test_a_nan_state_mid_walk_damps_briefly_then_walks_on_the_fresh_plan(q_stand):
+    """One NaN state used to latch safe mode for good (issue 14, fault 4): now the OSC damps
+    for recover_s and takes the robot back, walking, since the plan is fresh."""
+    osc = OscController()
+    osc.update(0.0, q_stand, np.zeros(32))
+    plan = _Plan(utime=1000)
+    _, dbg = osc.update(0.002, q_stand, np.zeros(32), plan, _Cmd())
+    assert dbg.mode == WALKING
+    bad = q_stand.copy()
+    bad[0] = np.inf
+    _, dbg = osc.update(0.0025, bad, np.zeros(32), plan, _Cmd())
+    assert dbg.mode == SAFE
+    n = round(osc.params.safety.recover_s / 0.0005)
+    for k in range(1, n):
+        _, dbg = osc.update(0.0025 + k * 0.0005, q_stand, np.zeros(32), plan, _Cmd())
+        assert dbg.mode == SAFE
+    _, dbg = osc.update(0.0025 + n * 0.0005, q_stand, np.zeros(32), plan, _Cmd())
+    assert dbg.mode == WALKING, dbg.status
+
+
+def test_a_stream_of_bad_states_keeps_safe_mode_until_they_stop(q_stand):
+    osc = OscController()
+    bad = q_stand.copy()
+    bad[5] = np.nan
+    for k in range(100):  # 50 ms of NaN states: the recovery clock restarts on each
+        _, dbg = osc.update(k * 0.0005, bad, np.zeros(32))
+        assert dbg.mode == SAFE
+    assert osc.safety.entries == 1
+    recover = osc.params.safety.recover_s
+    _, dbg = osc.update(0.05 + recover, q_stand, np.zeros(32))
+    assert dbg.mode == STANDING
+
+
+def test_a_fall_stays_latched_until_an_operator_resets(q_stand):
+    osc = OscController()
+    fallen = q_stand.copy()
+    fallen[2] = 0.2
+    fallen[3:7] = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)  # on its side
+    _, dbg = osc.update(0.0, fallen, np.zeros(32))
+    assert dbg.mode == SAFE and "fall" in dbg.status
+    assert osc.safety.terminal
+    _, dbg = osc.update(5.0, q_stand, np.zeros(32))  # seconds later, even standing up
+    assert dbg.mode == SAFE and "fall" in dbg.status
     osc.reset()
-    u, dbg = osc.update(0.0015, q_stand, np.zeros(32))
+    _, dbg = osc.update(5.001, q_stand, np.zeros(32))
     assert dbg.mode == STANDING
 
 
@@ -87,6 +136,10 @@ def test_missing_plan_while_walking_latches_safe_mode(q_stand):
     u, dbg = osc.update(0.01 + 1.5 * timeout, q_stand, np.zeros(32), plan, _Cmd())
     assert dbg.mode == SAFE and "timeout" in dbg.status
     assert np.all(np.isfinite(u))
+    # the plan stays stale: after recover_s the OSC stands (it cannot walk on that plan)
+    t = 0.01 + 1.5 * timeout + osc.params.safety.recover_s
+    _, dbg = osc.update(t, q_stand, np.zeros(32), plan, _Cmd())
+    assert dbg.mode == STANDING, dbg.status
 
 
 def test_no_plan_keeps_standing_and_a_stale_plan_is_not_walked_on(q_stand):
