@@ -622,6 +622,14 @@ def _process(
         return out
 
     inputs, outputs = ports("inputs"), ports("outputs")
+    for section, table in (("inputs", inputs), ("outputs", outputs)):
+        roles: dict[str, str] = {}
+        for role, ch in table.items():  # two roles on one channel: one stream taken as two
+            if ch.name in roles:
+                raise ck.fail(f"{key}.{section}.{role}",
+                              f"channel {ch.name} is already its {section[:-1]} "
+                              f"{roles[ch.name]!r}", allowed="one role per channel")
+            roles[ch.name] = role
     deps = d.get("depends_on") or []
     if not isinstance(deps, list) or not all(isinstance(x, str) for x in deps):
         raise ck.fail(f"{key}.depends_on", f"must be a list of process names, got {deps!r}")

@@ -1,5 +1,7 @@
 """The supervisor behind ``cassie launch``: starts a profile's processes and keeps them alive.
 
+* Check first: every process's node is built once (``cassie check``: params, gains files,
+  channel collisions) before any process starts; a problem ends the launch there, exit 2.
 * Start in dependency order; a process is ready when its first TIMING message arrives (every
   loop sends one right after its setup, then about ten a second) within its timeout. The
   supervisor listens to nothing else of the stack: TIMING (and its orders) ride the network
@@ -141,8 +143,11 @@ class Supervisor:
         shutdown_grace_s: tuple[float, float] = (3.0, 2.0),
         log_lcm: bool = False,
         dashboard: bool = False,
+        check_first: bool = True,
     ) -> None:
         self.profile = profile
+        #: build every node once (``cassie check``) before anything starts
+        self.check_first = check_first
         stamp = time.strftime("%Y%m%d-%H%M%S")
         self.log_dir = Path(log_dir) if log_dir else REPO_ROOT / "logs" / f"{stamp}-{profile.name}"
         self.duration_s = duration_s
@@ -372,6 +377,9 @@ class Supervisor:
         """Start everything, supervise until stopped, shut down; exit code 0 when all is well."""
         old = {s: signal.signal(s, self.request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
         try:
+            if not self._precheck():
+                self.state = "stopped"
+                return 2
             ok = self._start_all()
             self.state = "running" if ok else "stopping"
             # --duration counts the whole stack running: a fresh clone's start-up (a minute or
@@ -419,6 +427,36 @@ class Supervisor:
     def _faults(self) -> list[str]:
         """Required processes that reported a fault (safe mode, a fall) at any time."""
         return [c.proc.name for c in self.children.values() if c.proc.required and c.fault]
+
+    def _precheck(self) -> bool:
+        """Build every process's node once (``cassie check``, in a child: the supervisor
+        itself imports no robot code) before anything starts: a bad param, gains file or
+        channel collision stops the launch here, on the terminal."""
+        names = [n for n in self.order if self.children[n].command is None]
+        if not names or not self.check_first:
+            return True
+        cmd = [sys.executable, "-m", "tools.cli", "check", str(self.profile.path)]
+        for n in names:
+            cmd += ["--process", n]
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT), env.get("PYTHONPATH", "")]).rstrip(
+            os.pathsep)
+        t0 = time.monotonic()
+        try:
+            res = subprocess.run(cmd, cwd=str(REPO_ROOT), env=env, capture_output=True,
+                                 text=True, timeout=300)
+        except subprocess.TimeoutExpired:
+            self.out.write("checking the profile's processes took over 300 s; not started\n")
+            return False
+        if res.returncode == 0:
+            self.out.write(f"checked {len(names)} processes' params, gains and channels in "
+                           f"{time.monotonic() - t0:.1f} s\n")
+            return True
+        self.out.write(res.stdout + res.stderr)
+        self.out.write(f"result: FAILED (configuration: nothing was started; fix the file "
+                       f"named above, then `cassie check {self.profile.path}`)\n")
+        self.out.flush()
+        return False
 
     def _start_all(self) -> bool:
         for name in self.order:

@@ -151,6 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("command", help="send a velocity command (the radio)", add_help=False)
     sub.add_parser("log", help="record every LCM domain of a profile into one LCM log",
                    add_help=False)
+    sub.add_parser("check", help="build every process of a profile (params, gains, channels) "
+                   "without running it", add_help=False)
     return p
 
 
@@ -165,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "bench":
             return _cmd_bench(args, rest)
-        if args.command in ("experiment", "dashboard", "report", "command", "log"):
+        if args.command in ("experiment", "dashboard", "report", "command", "log", "check"):
             module = {"log": "logger"}.get(args.command, args.command)
             return _cmd_module(f"tools.{module}", rest)
         if rest:

@@ -140,3 +140,13 @@ def test_a_key_written_twice_is_an_error_naming_the_file_and_line(tmp_path):
         OscParams.from_yaml(f)
     assert "gains.yaml" in str(e.value)
     assert "'fall_height' twice (first on line 4)" in str(e.value)
+
+
+def test_two_input_roles_on_one_channel_are_refused_at_load(tmp_path):
+    profile = tmp_path / "two_roles.yaml"
+    profile.write_text(f"include: [{HW_CONFIG_DIR / 'sim.yaml'}]\nprofile: two_roles\n"
+                       "launch: [sim, state_estimator, torque_bridge, osc, mpfc]\n"
+                       "overrides: {osc: {inputs: {plan: state}}}\n")
+    with pytest.raises(ConfigError, match=r"two_roles.yaml: overrides\.osc\.inputs\.plan: "
+                       r"channel CASSIE_STATE is already its input"):
+        load_profile(profile)
