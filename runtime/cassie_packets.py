@@ -5,12 +5,12 @@ header (own sequence number, last sequence number received from the peer), so ea
 the peer's lost packets and the round-trip delay in cycles. The NUC's state estimator and
 torque bridge import this module, the sim produces the other side.
 
-Protocol version 1. Every packet::
+Protocol version 2 (version 1 had no pairing token). Every packet::
 
     offset size type     field
     0      1    uint8    seq        sender's own sequence number, +1 per packet, wraps 255 -> 0
     1      1    uint8    ack        last ``seq`` the sender received from its peer (0 before any)
-    2      1    uint8    version    PROTOCOL_VERSION (1)
+    2      1    uint8    version    PROTOCOL_VERSION (2)
     3      1    uint8    kind       ord('S') robot output, ord('T') torque input
 
 Robot output, target PC -> NUC (``kind = 'S'``), 476 bytes::
@@ -29,13 +29,18 @@ Robot output, target PC -> NUC (``kind = 'S'``), 476 bytes::
     468    4    uint32    overruns      target PC cycles that missed their 0.5 ms slot
     472    4    uint32    status        STATUS_* bit flags
 
-Torque input, NUC -> target PC (``kind = 'T'``), 88 bytes::
+Torque input, NUC -> target PC (``kind = 'T'``), 92 bytes::
 
-    4      80   10 x f64 torque           joint-side motor torque commands, N m (MOTOR_NAMES)
-    84     4    uint32   flags            FLAG_* bits (FLAG_RELEASE_HOLDER)
+    4      4    uint32   token            the launch's pairing token (``link_token``)
+    8      80   10 x f64 torque           joint-side motor torque commands, N m (MOTOR_NAMES)
+    88     4    uint32   flags            FLAG_* bits (FLAG_RELEASE_HOLDER)
 
 A packet is rejected with ``PacketError`` (and the receiver counts it) when its length is not
-exactly the layout's size, the version or kind byte is wrong, or any float is NaN or inf.
+exactly the layout's size, the version or kind byte is wrong, or any float is NaN or inf. The
+target PC applies torques only from the bridge it is paired with: a torque packet whose token
+is not the launch's is counted as foreign and dropped (``LinkCounter.foreign``). The token is
+pairing, not security: it keeps a bridge left over from another run, a second stack or a test
+tool from commanding the robot.
 """
 
 from __future__ import annotations
@@ -46,7 +51,9 @@ from typing import Any, ClassVar
 import numba
 import numpy as np
 
-PROTOCOL_VERSION = 1
+from runtime.pairing import DEFAULT_TOKEN
+
+PROTOCOL_VERSION = 2
 KIND_OUTPUT = ord("S")
 KIND_INPUT = ord("T")
 
@@ -91,11 +98,15 @@ OUTPUT_LAYOUT = np.dtype(
         ("status", "<u4"),
     ]
 )
-INPUT_LAYOUT = np.dtype([*_HEADER_FIELDS, ("torque", "<f8", (NUM_MOTORS,)), ("flags", "<u4")])
+INPUT_LAYOUT = np.dtype([*_HEADER_FIELDS, ("token", "<u4"), ("torque", "<f8", (NUM_MOTORS,)),
+                         ("flags", "<u4")])
 
 OUTPUT_SIZE = OUTPUT_LAYOUT.itemsize  # 476
-INPUT_SIZE = INPUT_LAYOUT.itemsize  # 88
+INPUT_SIZE = INPUT_LAYOUT.itemsize  # 92
 _FLAGS_AT = INPUT_LAYOUT.fields["flags"][1]  # byte offset of InputPacket.flags
+#: byte offset of the torque packet's pairing token
+TOKEN_AT = INPUT_LAYOUT.fields["token"][1]
+
 
 
 class PacketError(ValueError):
@@ -308,10 +319,19 @@ class InputPacket(Packet):
     KIND = KIND_INPUT
     NAME = "torque input"
 
-    def __init__(self) -> None:
+    def __init__(self, token: int = DEFAULT_TOKEN) -> None:
         super().__init__()
         self.torque = self.field("torque")
         self._flags = self.field("flags")
+        self.field("token")[0] = token
+
+    @property
+    def token(self) -> int:
+        return int.from_bytes(self.buffer[TOKEN_AT:TOKEN_AT + 4], "little")
+
+    @token.setter
+    def token(self, value: int) -> None:
+        self.field("token")[0] = value
 
     @property
     def flags(self) -> int:
@@ -340,6 +360,7 @@ class LinkCounter:
     duplicates: int = 0  # same seq again (retransmits)
     resyncs: int = 0  # ambiguous jumps of more than 127 (outage, restart, late packet)
     malformed: int = 0  # datagrams rejected by decode (counted by the caller via ``on_error``)
+    foreign: int = 0  # well-formed packets with another launch's pairing token (dropped)
     own_seq: int = -1  # seq of the last packet sent, -1 before any
     last_peer_seq: int = 0  # ack to stamp on the next packet sent
     round_trip_cycles: int = -1  # own packets sent since the one the peer last acknowledged
@@ -380,13 +401,15 @@ class LinkCounter:
         """One line for status and logs."""
         return (
             f"sent {self.sent} recv {self.received} lost {self.lost} dup {self.duplicates} "
-            f"resync {self.resyncs} bad {self.malformed} rtt {self.round_trip_cycles} cyc"
+            f"resync {self.resyncs} bad {self.malformed} foreign {self.foreign} "
+            f"rtt {self.round_trip_cycles} cyc"
         )
 
 
-def encode_input(seq: int, ack: int, torque: np.ndarray, flags: int = 0) -> bytes:
+def encode_input(seq: int, ack: int, torque: np.ndarray, flags: int = 0,
+                 token: int = DEFAULT_TOKEN) -> bytes:
     """Convenience: one torque packet as bytes (allocates; loops should reuse an InputPacket)."""
-    pkt = InputPacket()
+    pkt = InputPacket(token)
     pkt.torque[:] = torque
     pkt.flags = flags
     return pkt.to_bytes(seq, ack)

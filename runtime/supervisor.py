@@ -26,6 +26,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
+import secrets
 import signal
 import subprocess
 import sys
@@ -42,6 +43,7 @@ from runtime.bus import Bus
 from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
+from runtime.pairing import TOKEN_ENV
 from runtime.scheduling import describe, pin_to_supervisor_host
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -146,6 +148,8 @@ class Supervisor:
         check_first: bool = True,
     ) -> None:
         self.profile = profile
+        #: this launch's sim <-> bridge pairing token (runtime.cassie_packets.link_token)
+        self.link_token = secrets.randbits(32) | 1
         #: build every node once (``cassie check``) before anything starts
         self.check_first = check_first
         stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -305,6 +309,9 @@ class Supervisor:
         env["CASSIE_LCM_URL"] = self.profile.lcm_url
         env["PYTHONUNBUFFERED"] = "1"
         env["CASSIE_SUPERVISED"] = "1"
+        # the sim takes torque packets only with this launch's token: a bridge of another
+        # run or stack (or any tool) cannot command the robot (docs/udp_protocol.md)
+        env[TOKEN_ENV] = str(self.link_token)
         child.popen = subprocess.Popen(
             self._command(child),
             stdout=child.log_file,

@@ -38,6 +38,7 @@ from runtime.config import safe_load
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
+from runtime.pairing import link_token
 from sim import terrain as terrain_mod
 from sim.camera import (
     AsyncDepthRenderer,
@@ -344,7 +345,7 @@ class SimNode(Node):
                           (sim.holder.timeconst_s, sim.holder.dampratio))
             renderer = ProcessDepthRenderer(model_args, settings.camera)
         self.core = make_core(settings.terrain, settings.sim)
-        self.tpc = TargetPC(self.core, mode, settings.steps_per_command)
+        self.tpc = TargetPC(self.core, mode, settings.steps_per_command, link_token())
         # periodic: as many physics steps per tick as fit the period (1 at 2 kHz)
         ratio = self.period_s / self.core.dt
         self.steps_per_tick = max(1, round(ratio))
@@ -543,6 +544,7 @@ class SimNode(Node):
             "commands_received": tpc.link.received,
             "commands_lost": tpc.link.lost,
             "commands_malformed": tpc.link.malformed,
+            "commands_foreign": tpc.link.foreign,  # another launch's pairing token
             "zero_torque_steps": c.zero_torque_steps,
             "rtf": tpc.stats.rtf if self.wall_clock else 0.0,
             "overruns": tpc.stats.overruns,

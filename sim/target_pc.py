@@ -30,16 +30,19 @@ import numpy as np
 
 from runtime.cassie_packets import (
     FLAG_RELEASE_HOLDER,
+    INPUT_SIZE,
     STATUS_HOLDER_ENGAGED,
     STATUS_LOCKSTEP,
     STATUS_SLOWER_THAN_REALTIME,
     STATUS_WATCHDOG_TRIPPED,
+    TOKEN_AT,
     InputPacket,
     LinkCounter,
     OutputPacket,
     PacketError,
     float_block,
 )
+from runtime.pairing import DEFAULT_TOKEN, token_bytes
 from sim.model import CassieIndices, build_model, standing_pose
 from sim.terrain import Terrain
 
@@ -317,8 +320,12 @@ class TargetPC:
     send it or copy it before the next call).
     """
 
-    def __init__(self, core: SimCore, mode: Mode = "realtime", steps_per_command: int = 1) -> None:
+    def __init__(self, core: SimCore, mode: Mode = "realtime", steps_per_command: int = 1,
+                 token: int = DEFAULT_TOKEN) -> None:
         self.core = core
+        #: the pairing token a torque packet must carry (``cassie_packets.link_token``)
+        self.token = token
+        self._token = token_bytes(token)
         self.mode = mode
         self.steps_per_command = steps_per_command
         self.link = LinkCounter()
@@ -334,6 +341,9 @@ class TargetPC:
     def receive(self, data: bytes | bytearray | memoryview) -> bool:
         """Decode and account one datagram; False (counted, never raised) if malformed."""
         inp = self.inp
+        if data[TOKEN_AT:TOKEN_AT + 4] != self._token and len(data) == INPUT_SIZE:
+            self._foreign(data)
+            return False
         try:
             inp.decode(data)
         except PacketError as exc:
@@ -342,6 +352,15 @@ class TargetPC:
         buf = inp.buffer
         self.link.on_receive(buf[0], buf[1])  # seq, ack
         return True
+
+    def _foreign(self, data: bytes | bytearray | memoryview) -> None:
+        """A torque packet from a bridge this target PC is not paired with: dropped."""
+        self.link.foreign += 1
+        other = int.from_bytes(bytes(data[TOKEN_AT:TOKEN_AT + 4]), "little")
+        self.last_error = (f"torque packet with pairing token {other:#010x}, not this launch's "
+                           f"{self.token:#010x}: from another stack or tool (dropped)")
+        if self.link.foreign <= 10 or self.link.foreign % 1000 == 0:
+            log.warning("foreign packet #%d: %s", self.link.foreign, self.last_error)
 
     def _rejected(self, exc: PacketError) -> None:
         self.link.on_error()

@@ -385,9 +385,9 @@ def _realtime(
 #: counter, the receiver's count of gaps in the sender's sequence numbers)
 LINKS = (
     ("target PC -> estimator", "sim", "packets_sent", "state_estimator", "packets_received",
-     "packets_lost"),
+     "packets_lost", ("packets_rejected",)),
     ("torque bridge -> target PC", "torque_bridge", "packets_sent", "sim", "commands_received",
-     "commands_lost"),
+     "commands_lost", ("commands_malformed", "commands_foreign")),
 )
 
 
@@ -397,7 +397,7 @@ def _link(by_proc: dict[str, tuple[list[Any], list[int]]]) -> dict[str, dict[str
     cannot tell after a resend) and the receiver's own count of sequence gaps. Counters are
     interpolated at the span's ends, so the two processes' reports need not coincide."""
     out: dict[str, dict[str, float]] = {}
-    for name, tx, sent_key, rx, recv_key, gap_key in LINKS:
+    for name, tx, sent_key, rx, recv_key, gap_key, rejected_keys in LINKS:
         if tx not in by_proc or rx not in by_proc:
             continue
         st, sv = _counter_series(*by_proc[tx], sent_key)
@@ -411,9 +411,14 @@ def _link(by_proc: dict[str, tuple[list[Any], list[int]]]) -> dict[str, dict[str
         sent = float(np.interp(t1, st, sv) - np.interp(t0, st, sv))
         recv = float(np.interp(t1, rt_, rv) - np.interp(t0, rt_, rv))
         gaps = float(np.interp(t1, gt, gv) - np.interp(t0, gt, gv)) if len(gt) >= 2 else 0.0
+        rejected = 0.0  # arrived but refused: malformed, off range, another launch's token
+        for key in rejected_keys:
+            kt, kv = _counter_series(*by_proc[rx], key)
+            if len(kt) >= 2:
+                rejected += float(np.interp(t1, kt, kv) - np.interp(t0, kt, kv))
         out[name] = {"sent": sent, "received": recv, "lost": max(sent - recv, 0.0),
                      "lost_ratio": max(sent - recv, 0.0) / sent if sent > 0 else 0.0,
-                     "seq_gaps": gaps, "span_s": (t1 - t0) / 1e6}
+                     "seq_gaps": gaps, "rejected": rejected, "span_s": (t1 - t0) / 1e6}
     return out
 
 
@@ -461,10 +466,11 @@ def print_realtime(rt: dict[str, Any], out: Any = sys.stdout) -> None:
         w("\nUDP link (datagrams over the span both ends reported; lost = sent - received)\n"
           "--------\n")
         w(f"{'direction':<28}{'sent':>9}{'received':>10}{'lost':>8}{'lost %':>8}"
-          f"{'seq gaps':>10}\n")
+          f"{'seq gaps':>10}{'rejected':>10}\n")
         for name, r in links.items():
             w(f"{name:<28}{r['sent']:>9.0f}{r['received']:>10.0f}{r['lost']:>8.0f}"
-              f"{100 * r['lost_ratio']:>8.2f}{r['seq_gaps']:>10.0f}\n")
+              f"{100 * r['lost_ratio']:>8.2f}{r['seq_gaps']:>10.0f}"
+              f"{r.get('rejected', 0.0):>10.0f}\n")
 
 
 def _pcts(a: np.ndarray, prefix: str) -> dict[str, float]:
@@ -551,6 +557,7 @@ def flatten(rep: dict[str, Any]) -> dict[str, Any]:
         flat[f"link_{key}_lost_count"] = r["lost"]
         flat[f"link_{key}_lost_ratio"] = r["lost_ratio"]
         flat[f"link_{key}_seq_gaps_count"] = r["seq_gaps"]
+        flat[f"link_{key}_rejected_count"] = r.get("rejected", 0.0)
     return flat
 
 

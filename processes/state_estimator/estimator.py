@@ -23,7 +23,15 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from runtime.cassie_packets import NUM_MOTORS, OUTPUT_LAYOUT, OUTPUT_SIZE, OutputPacket, PacketError
+from runtime.cassie_packets import (
+    KIND_OUTPUT,
+    NUM_MOTORS,
+    OUTPUT_LAYOUT,
+    OUTPUT_SIZE,
+    PROTOCOL_VERSION,
+    OutputPacket,
+    PacketError,
+)
 
 from . import kernels as K
 from .alip_filter import AlipKalman
@@ -244,6 +252,7 @@ class CassieEstimator:
         # constants
         p = self.params
         C = np.zeros(K.C_SIZE)
+        C[K.C_PROTO], C[K.C_PROTO + 1] = PROTOCOL_VERSION, KIND_OUTPUT
         C[K.C_LO:K.C_LO + K.W_NCHECK] = self._lo
         C[K.C_HI:K.C_HI + K.W_NCHECK] = self._hi
         C[K.C_QN_LO], C[K.C_QN_HI] = self._qn_lo, self._qn_hi

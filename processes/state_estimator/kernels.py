@@ -32,12 +32,10 @@ from numba import types
 from numba.extending import intrinsic
 
 from runtime.cassie_packets import (
-    KIND_OUTPUT,
     NUM_JOINTS,
     NUM_MOTORS,
     OUTPUT_LAYOUT,
     OUTPUT_SIZE,
-    PROTOCOL_VERSION,
 )
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -609,6 +607,7 @@ I_OUT = I_TARGET_STATUS + 1
 
 #: ``C`` (float64): constants
 _C_SPEC = (
+    ("PROTO", 2),  # the packet's version and kind bytes (data, not compiled in: see _checks)
     ("LO", W_NCHECK), ("HI", W_NCHECK), ("QN_LO", 1), ("QN_HI", 1),  # range check
     ("R_IMU", 3), ("G", 3), ("VAR_G", 1), ("VAR_A", 1), ("VAR_C", 1), ("VAR_S", 1),
     ("KIN_VAR", 1),  # InEKF
@@ -619,7 +618,7 @@ _C_SPEC = (
     ("FOOT_LOCAL", 12), ("SPRING_REF", 4),  # kinematics
 )
 C_OFF, C_SIZE = _offsets(_C_SPEC)
-(C_LO, C_HI, C_QN_LO, C_QN_HI, C_R_IMU, C_G, C_VAR_G, C_VAR_A, C_VAR_C, C_VAR_S, C_KIN_VAR,
+(C_PROTO, C_LO, C_HI, C_QN_LO, C_QN_HI, C_R_IMU, C_G, C_VAR_G, C_VAR_A, C_VAR_C, C_VAR_S, C_KIN_VAR,
  C_STILL_GYRO, C_STILL_ACCEL, C_STILL_AFTER_US, C_STILL_VAR, C_GAIN, C_ON_N, C_OFF_N,
  C_TD_SPEED, C_FOOT_RADIUS, C_FOOT_HALF, C_MASS, C_TGT_OFF,
  C_ACH_DIR, C_PLA_AXIS, C_PLA_TIP_PROJ, C_ROD_TIP, C_FOOT_LOCAL,
@@ -668,7 +667,9 @@ def _checks(W: np.ndarray, PB: np.ndarray, S: np.ndarray, N: np.ndarray,
             C: np.ndarray) -> int:
     """``OutputPacket.decode`` (version, kind, finite doubles; then copied into the packet
     ``PB``) and ``CassieEstimator.check`` (bounds, IMU quaternion norm, time advancing)."""
-    if W[W_VERSION] != PROTOCOL_VERSION or W[W_KIND] != KIND_OUTPUT:
+    # (the version and kind come in C: numba's cache keeps a compiled global as it was when
+    # this file last changed, and a new PROTOCOL_VERSION in cassie_packets would not reach it)
+    if W[W_VERSION] != C[C_PROTO] or W[W_KIND] != C[C_PROTO + 1]:
         return E_DECODE
     wf = W.view(np.float64)
     for i in range(W_QUAT, W_QUAT + W_NFINITE):

@@ -41,6 +41,7 @@ from runtime.config import param_number, process_gains
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 from runtime.node import Context, Inbox, Node
+from runtime.pairing import link_token
 
 from .bridge import DEFAULT_GAINS_FILE, SOURCE_COMMAND, BridgeParams, TorqueBridge
 
@@ -101,7 +102,7 @@ class TorqueBridgeNode(Node):
         self._pending: tuple[list[float], int] | None = None
         self.bridge = TorqueBridge(self.params)
         self.link = LinkCounter()
-        self.pkt = InputPacket()
+        self.pkt = InputPacket(link_token())  # the sim takes torques only with this token
         self._dofs: list[int] = []
         self._dof_max = -1
         self._mv = np.zeros(NUM_MOTORS)

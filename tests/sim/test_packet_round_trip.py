@@ -101,7 +101,7 @@ def test_link_counter_counts_loss_and_round_trip_across_wraparound() -> None:
 
 def test_documented_layout_matches_the_code() -> None:
     doc = (REPO / "docs" / "udp_protocol.md").read_text(encoding="utf-8")
-    assert OUTPUT_SIZE == 476 and INPUT_SIZE == 88
+    assert OUTPUT_SIZE == 476 and INPUT_SIZE == 92
     for layout in (OUTPUT_LAYOUT, INPUT_LAYOUT):
         for name in layout.names:
             offset = layout.fields[name][1]

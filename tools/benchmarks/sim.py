@@ -349,8 +349,11 @@ def start_contender(mb: float, cpus: list[int], module: str) -> subprocess.Popen
 # -- this benchmark's processes --------------------------------------------------------------
 
 
-def _peer(listen_port: int, send_port: int, cpus: list[int], fifo: int) -> int:
-    """The NUC stand-in: answer each state packet at once with a zero-torque packet."""
+def _peer(listen_port: int, send_port: int, cpus: list[int], fifo: int,
+          tree: str | None = None) -> int:
+    """The NUC stand-in: answer each state packet at once with a zero-torque packet, in the
+    protocol of the sim's tree (``tree``: a baseline's, which may be an older version)."""
+    use_tree(tree)
     from runtime.cassie_packets import InputPacket, LinkCounter, OutputPacket, PacketError
 
     notes = pin(cpus, fifo)
@@ -422,7 +425,8 @@ def _run_once(tree: Path | None, args: argparse.Namespace, nuc_cpus: list[int],
     out_port, in_port = free_udp_port(), free_udp_port()
     mod = "tools.benchmarks.sim"
     peer = start_child(["--role", "peer", "--ports", str(out_port), str(in_port), "--cpus",
-                        ",".join(map(str, nuc_cpus)), "--fifo", str(peer_fifo)], env, mod)
+                        ",".join(map(str, nuc_cpus)), "--fifo", str(peer_fifo),
+                        *(["--tree", str(tree)] if tree is not None else [])], env, mod)
     assert peer.stdout is not None
     if peer.stdout.readline().strip() != "ready":
         raise SystemExit(f"the peer did not start: {stop_child(peer)[1]}")
@@ -511,7 +515,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fifo", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.role == "peer":
-        return _peer(*args.ports, [int(c) for c in args.cpus.split(",") if c], args.fifo)
+        return _peer(*args.ports, [int(c) for c in args.cpus.split(",") if c], args.fifo,
+                     args.tree)
     if args.role == "contend":
         return contend(args.mb, [int(c) for c in args.cpus.split(",") if c])
     if args.role == "sim":
