@@ -92,6 +92,7 @@ class OscController:
         self.waiting = False  # walking asked, plan not yet in double stance
         self._mode_before_safe = STANDING  # the mode a fault interrupted
         self._safe_since = 0.0  # sim time safe mode began
+        self._resume = False  # ``resume``: walk on the first fresh plan, any phase
         self._rigid_swing_springs = self.params.springs == "rigid_swing"
         self._q = np.zeros(m.nq)
         self._v = np.zeros(m.nv)
@@ -149,6 +150,11 @@ class OscController:
                                                                 pc[3][2]))
             if fault is not None:
                 return self._safe(q, v, fault, t0)
+            if self._resume and self.mode == STANDING and self._can_walk_now(
+                    t_s, plan, command, plan_ok):
+                self._resume = False
+                self.mode = WALKING
+                self.walking.reset()
             fault = self._choose_mode(t_s, plan, command, plan_ok)
             if fault is not None:
                 return self._safe(q, v, fault, t0)
@@ -256,14 +262,28 @@ class OscController:
         self.qp_failures = 0
         self.walking.reset()
         self.standing.started = False
-        plan_t = _plan_time(plan)
-        resume = (self._mode_before_safe == WALKING and plan_ok and command is not None
-                  and int(command.mode) == 0 and int(plan.gait_state) != GAIT_STANDING
-                  and (plan_t is None or t - plan_t <= self.params.safety.plan_timeout_s))
+        resume = self._mode_before_safe == WALKING and self._can_walk_now(t, plan, command,
+                                                                         plan_ok)
         self.mode = WALKING if resume else STANDING
         log.warning("OSC left safe mode after %.0f ms: %s", 1e3 * (t - self._safe_since),
                     MODE_NAMES[self.mode])
         return True
+
+    def _can_walk_now(self, t: float, plan: Any | None, command: Any | None,
+                      plan_ok: bool) -> bool:
+        """A fresh, valid walking plan and a walk command: walking may take over in any phase
+        of the gait (a recovery, a restart mid-walk), not only in double stance."""
+        plan_t = _plan_time(plan)
+        return (plan_ok and command is not None and int(command.mode) == 0
+                and int(plan.gait_state) != GAIT_STANDING
+                and (plan_t is None or t - plan_t <= self.params.safety.plan_timeout_s))
+
+    def resume(self) -> None:
+        """This controller takes over a robot that is already walking (the OSC restarted
+        mid-walk): it walks on the first fresh walking plan, in whatever phase, instead of
+        standing until a double-stance hand-over (measured: a restarted OSC that stood first
+        let the walking robot fall)."""
+        self._resume = True
 
     def _feet_down(self, dz: float = 0.015, vz: float = 0.15) -> bool:
         """Both blades down (kinematic check, no contact sensing): every contact point within

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from lcmtypes import command_t, mpfc_output_t, osc_debug_t, robot_state_t, torque_command_t
+from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
 from runtime.config import param_bool, param_number
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
@@ -51,6 +52,7 @@ class OscNode(Node):
         #: holder, which the bridge releases after its release_after_s of standing, then free
         self._stand_first_us = round(stand_first_s * 1e6)
         self._walk_from_us: int | None = None if stand_first_s > 0.0 else 0
+        self._first_state = True
         self._stand = command_t()
         self._stand.mode = 1
         #: until the radio's first command: walk (mode 0, no turning: the stack walks at the
@@ -116,6 +118,15 @@ class OscNode(Node):
         t = float(state.header.utime) * 1e-6
         command = inbox.latest("command") or self._default_command
         plan = inbox.latest("plan")
+        if self._first_state:
+            self._first_state = False
+            if not int(state.target_status) & STATUS_HOLDER_ENGAGED and (
+                    self._hold_until_plan or self._stand_first_us):
+                # the robot is free already: this OSC was restarted mid-run, it is not the
+                # start on the gantry. No zero torque, no standing first: walk on at once
+                self._hold_until_plan = False
+                self._walk_from_us = 0
+                ctrl.resume()
         if self._hold_until_plan:
             if plan is None:
                 self._publish_off(ctx, state)

@@ -9,6 +9,7 @@ import pytest
 
 from lcmtypes import osc_debug_t, robot_state_t, torque_command_t
 from processes.osc.process import make_node
+from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 
@@ -55,9 +56,11 @@ def _proc(**params) -> ProcessConfig:
                          source_file=HW / "processes.yaml", params=dict(params))
 
 
-def _state(q: np.ndarray, utime: int) -> robot_state_t:
+def _state(q: np.ndarray, utime: int, held: bool = True) -> robot_state_t:
+    """A state at ``utime``; ``held``: the target PC reports its start-up holder engaged."""
     s = robot_state_t()
     s.header.utime = utime
+    s.target_status = STATUS_HOLDER_ENGAGED if held else 0
     s.num_positions, s.num_velocities, s.num_motors = 35, 32, 10
     s.q = q.tolist()
     s.v = [0.0] * 32
@@ -182,3 +185,22 @@ def test_stand_first_keeps_standing_on_a_walking_plan_then_walks(q_stand):
     assert node.controller.mode == STANDING
     node.tick(ctx, _PlanInbox(_state(q_stand, 501_500), _ds_plan(node, 501_500)))
     assert node.controller.mode == WALKING
+
+
+def test_an_osc_restarted_mid_walk_walks_on_at_once_in_single_stance(q_stand):
+    """A restart is not the gantry start: when the first state says the robot is free (the
+    holder released), no zero torque and no standing first; the first fresh walking plan is
+    taken up in whatever phase (measured live: a restarted OSC that stood first let the
+    walking robot fall 1.4 s later)."""
+    from processes.osc.controller import WALKING
+
+    node = make_node(_proc(hold_until_plan=True, stand_first_s=1.2), _profile())
+    ctx = _Ctx()
+    node.setup(ctx)
+    plan = _ds_plan(node, 1000)
+    plan.gait_state = 0  # single stance on the left foot, mid-swing
+    plan.prev_switch_time_s, plan.next_switch_time_s = 0.0, 0.2
+    node.tick(ctx, _PlanInbox(_state(q_stand, 1000, held=False), plan))
+    tq = ctx.sent[-2][1] if ctx.sent[-1][0] == "debug" else ctx.sent[-1][1]
+    assert node.controller.mode == WALKING and tq.mode == 0, tq.status
+    assert any(t != 0.0 for t in tq.torque)

@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 
 from runtime.cassie_packets import (
     INPUT_SIZE,
-    TOKEN_AT,
     OUTPUT_SIZE,
     PROTOCOL_VERSION,
+    TOKEN_AT,
     InputPacket,
     OutputPacket,
     PacketError,
