@@ -71,7 +71,8 @@ PROCESS_KEYS = {
     "harness_delay_ms",
     "limits",
 }
-RESTART_KEYS = {"policy", "max_restarts", "window_s", "backoff_initial_s", "backoff_max_s"}
+RESTART_KEYS = {"policy", "max_restarts", "window_s", "backoff_initial_s", "backoff_max_s",
+                "standby"}
 MODES = ("realtime", "lockstep")
 #: how the hosts' local (ttl-0) traffic is kept apart on this one machine: ``ports`` gives each
 #: host a multicast port of its own (the network URL's port + the host's lcm_port_offset), as
@@ -657,6 +658,7 @@ def _process(
         window_s=ck.number(r, f"{key}.restart", "window_s", default=60.0, lo=0.0, lo_open=True),
         backoff_initial_s=ck.number(r, f"{key}.restart", "backoff_initial_s", default=0.5, lo=0.0),
         backoff_max_s=ck.number(r, f"{key}.restart", "backoff_max_s", default=8.0, lo=0.0),
+        standby=ck.boolean(r, f"{key}.restart", "standby", False),
     )
     aff = d.get("cpu_affinity")
     if aff is not None and (

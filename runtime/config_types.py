@@ -48,6 +48,9 @@ class RestartPolicy:
     window_s: float = 60.0
     backoff_initial_s: float = 0.5
     backoff_max_s: float = 8.0
+    #: keep a spare copy of the process set up and waiting (``cassie run --standby``): a
+    #: crash is answered by waking it, ready in milliseconds instead of a cold start
+    standby: bool = False
 
 
 @dataclass(frozen=True)

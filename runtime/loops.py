@@ -35,6 +35,7 @@ import time
 from typing import Any
 
 from runtime.bus import Bus, Subscription
+from runtime.checkpoint import StateCheckpoint, checkpoint_path
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.node import HEALTH_WARNING, Node, OutputGates, SlotGate, TickGuard
 from runtime.port_buffer import PortInbox
@@ -251,12 +252,15 @@ class LiveRunner:
         self.bus.publish(self.profile.timing_channel, msg)
 
     # -- the loops -------------------------------------------------------------------------
-    def run(self, duration_s: float | None = None) -> int:
-        """Run until SIGINT/SIGTERM, ``stop()`` or ``duration_s``; returns an exit code."""
+    def run(self, duration_s: float | None = None, set_up: bool = False) -> int:
+        """Run until SIGINT/SIGTERM, ``stop()`` or ``duration_s``; returns an exit code.
+        ``set_up``: the node's ``setup`` and ``warm_up`` were done already (a standby)."""
         self._install_signals()
         _set_timer_slack_ns(1000)
-        self.node.setup(self.ctx)
-        self.node.warm_up()
+        if not set_up:
+            self.node.setup(self.ctx)
+            self.node.warm_up()
+        self._carry_on()
         if self.proc.gc == "freeze":
             gc.collect()
             gc.freeze()
@@ -295,6 +299,25 @@ class LiveRunner:
                     p.close()
             gc.enable()
         return 0
+
+    def _carry_on(self) -> None:
+        """Load the state a predecessor of this process saved in this launch (it crashed and
+        this is its standby or restart), and save this one's from now on."""
+        arrays = self.node.state_arrays()
+        path = checkpoint_path(self.proc.name) if arrays else None
+        if path is None:
+            return
+        try:
+            ck = StateCheckpoint(path, arrays)
+        except (OSError, ValueError) as exc:
+            log.warning("%s: no state checkpoint (%s): a successor will start afresh",
+                        self.proc.name, exc)
+            return
+        if ck.load():
+            log.info("%s: carrying on from the state its predecessor saved (%s)",
+                     self.proc.name, path)
+            self.node.restored()
+        self.guard.checkpoint = ck
 
     def stop(self) -> None:
         self.stop_event.set()

@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
+
+if TYPE_CHECKING:
+    import numpy as np
 
 log = logging.getLogger(__name__)
 
@@ -80,11 +83,15 @@ class TickGuard:
         self.node = node
         self.errors = 0
         self.last_error = ""
+        #: live: where the node's state is saved after each good tick (runtime.checkpoint)
+        self.checkpoint: Any = None
 
     def tick(self, ctx: Context, inbox: Inbox) -> bool:
         """One tick; False when it raised."""
         try:
             self.node.tick(ctx, inbox)
+            if self.checkpoint is not None:
+                self.checkpoint.save()
             return True
         except Exception as exc:  # any bug in a tick: count it, keep running
             self.errors += 1
@@ -177,6 +184,16 @@ class Node:
         ready): make the first real ticks as fast as the later ones, e.g. run every compiled
         kernel once. The harness skips it: there, time is simulated and results must not
         depend on it."""
+
+    def state_arrays(self) -> list[np.ndarray]:
+        """The contiguous arrays that hold the algorithm's whole state, if it has one worth
+        carrying over a crash (``runtime.checkpoint``): live, they are saved after every tick
+        and a successor in the same launch loads them before its first. [] for none."""
+        return []
+
+    def restored(self) -> None:
+        """Called (live) after ``state_arrays`` were loaded from a predecessor's save: the
+        node decides whether that state is still good when the first input arrives."""
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:  # pragma: no cover - abstract
         """One step of the algorithm: read ``inbox``, ``ctx.publish`` the outputs."""

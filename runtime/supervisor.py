@@ -2,6 +2,10 @@
 
 * Check first: every process's node is built once (``cassie check``: params, gains files,
   channel collisions) before any process starts; a problem ends the launch there, exit 2.
+* Standbys: a process with ``restart.standby`` gets a spare once it is ready (``cassie run
+  --standby``: set up and warmed up at nice 19, bound to nothing, blocked on stdin); a crash
+  is answered by writing ``go`` to the spare, which is ready in a fraction of a second, and a
+  new spare is set up a few seconds later, one at a time.
 * Start in dependency order; a process is ready when its first TIMING message arrives (every
   loop sends one right after its setup, then about ten a second) within its timeout. The
   supervisor listens to nothing else of the stack: TIMING (and its orders) ride the network
@@ -40,6 +44,7 @@ import psutil
 
 from lcmtypes import loop_timing_t, process_status_t, supervisor_orders_t, supervisor_status_t
 from runtime.bus import Bus
+from runtime.checkpoint import remove_checkpoints
 from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
@@ -50,6 +55,11 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 FAILED_STATES = ("failed", "crash_loop")
 #: what SUPERVISOR_ORDERS may ask of a process (or of "*": all)
 ORDERS = ("start", "stop", "restart")
+#: the standby's "set up" pipe (``cassie run --standby``): the file descriptor it writes
+#: ``ready`` to once it waits for the supervisor's go
+STANDBY_FD_ENV = "CASSIE_STANDBY_FD"
+#: seconds between two standbys' set-ups (one at a time beside the running loops)
+STANDBY_SPACING_S = 5.0
 _PR_SET_PDEATHSIG = 1
 
 
@@ -104,6 +114,11 @@ class Child:
     last_crash: str = ""
     command: list[str] | None = None  # a helper program instead of `cassie run NAME`
     heartbeat: bool = True  # sends TIMING (a Node); else ready once alive for a moment
+    #: its spare (``restart.standby``): set up, blocked on stdin until told ``go``
+    standby: subprocess.Popen[bytes] | None = None
+    standby_pipe: int = -1  # where the spare says it is set up (non-blocking read end)
+    standby_ready: bool = False
+    takeovers: int = 0  # crashes answered by the standby
     _kids: dict[int, psutil.Process] = field(default_factory=dict)
 
     @property
@@ -188,6 +203,7 @@ class Supervisor:
         self.refused: dict[str, int] = {}
         self._refused_last: dict[str, str] = {}
         self._stop_requested = False
+        self._next_standby_at = 0.0
         self._status_seq = 0
         self._me = psutil.Process()
         self._me.cpu_percent(None)
@@ -294,14 +310,7 @@ class Supervisor:
             *self.extra_args,
         ]
 
-    def _start_child(self, child: Child) -> None:
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        child.log_path = self.log_dir / f"{child.proc.name}.log"
-        if child.log_file is None:
-            child.log_file = open(child.log_path, "ab", buffering=0)  # noqa: SIM115
-        child.log_file.write(
-            f"\n=== start {time.strftime('%H:%M:%S')} (restart {child.restarts}) ===\n".encode()
-        )
+    def _child_env(self) -> dict[str, str]:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT), env.get("PYTHONPATH", "")]).rstrip(
             os.pathsep
@@ -312,19 +321,137 @@ class Supervisor:
         # the sim takes torque packets only with this launch's token: a bridge of another
         # run or stack (or any tool) cannot command the robot (docs/udp_protocol.md)
         env[TOKEN_ENV] = str(self.link_token)
-        child.popen = subprocess.Popen(
-            self._command(child),
+        return env
+
+    def _spawn(self, child: Child, cmd: list[str], stdin: int,
+               ready_fd: int | None = None) -> subprocess.Popen[bytes]:
+        """Start ``cmd`` for ``child``: its log file, its own process group, death with the
+        supervisor (``ready_fd``: a standby's end of its "set up" pipe)."""
+        env = self._child_env()
+        if ready_fd is not None:
+            env[STANDBY_FD_ENV] = str(ready_fd)
+        return subprocess.Popen(
+            cmd,
             stdout=child.log_file,
             stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
+            stdin=stdin,
             cwd=str(REPO_ROOT),
             env=env,
+            pass_fds=() if ready_fd is None else (ready_fd,),
             preexec_fn=functools.partial(
                 _child_preexec,
                 (child.proc.cpu_affinity or self._all_cpus) if child.command is not None
                 else self._all_cpus,  # `cassie run` pins itself to its host's CPUs
             ),
         )
+
+    # -- standbys ------------------------------------------------------------------------------
+    def _keep_standbys(self, now: float) -> None:
+        """Give each ready process with ``restart.standby`` a spare, one set-up at a time
+        (each is a few seconds of a core at nice 19: never two at once beside the loops)."""
+        if self.state != "running" or now < self._next_standby_at:
+            return
+        for name in self.order:
+            c = self.children[name]
+            if not c.proc.restart.standby or c.command is not None:
+                continue
+            if c.standby is not None and c.standby.poll() is not None:
+                self.out.write(f"{name}: its standby exited ({c.standby.returncode}); "
+                               "starting another\n")
+                self._end_standby(c)
+            if c.standby is not None and not c.standby_ready:
+                try:
+                    c.standby_ready = os.read(c.standby_pipe, 16).startswith(b"ready")
+                except BlockingIOError:
+                    pass
+                if not c.standby_ready:
+                    return  # still setting up: one at a time
+            if c.standby is None and c.state == "ready" and now - c.ready_at > 1.0:
+                assert c.log_file is not None
+                c.log_file.write(f"\n=== standby {time.strftime('%H:%M:%S')} ===\n".encode())
+                r, w = os.pipe()
+                os.set_blocking(r, False)
+                try:
+                    c.standby = self._spawn(c, [*self._command(c), "--standby"],
+                                            subprocess.PIPE, ready_fd=w)
+                finally:
+                    os.close(w)
+                c.standby_pipe, c.standby_ready = r, False
+                self._next_standby_at = now + STANDBY_SPACING_S
+                return
+
+    def _take_over(self, child: Child, now: float, how: str) -> bool:
+        """The crashed ``child``'s standby becomes it (``go`` on its stdin); False when there
+        is none alive."""
+        sb = child.standby
+        if sb is None or sb.poll() is not None or self.state != "running":
+            if sb is not None:
+                self._end_standby(child)
+            return False
+        try:
+            assert sb.stdin is not None
+            sb.stdin.write(b"go\n")  # (a spare still setting up runs once it is set up)
+            sb.stdin.flush()
+        except OSError:
+            self._end_standby(child)
+            return False
+        child.standby = None
+        if child.standby_pipe >= 0:
+            os.close(child.standby_pipe)
+            child.standby_pipe = -1
+        child.popen = sb
+        child.state, child.started_at, child.ready_at = "starting", now, 0.0
+        child.last_msg_ns, child.status, child.health = 0, "", 0
+        child.takeovers += 1
+        child.detail = f"{how}; its standby took over"
+        try:
+            child.ps = psutil.Process(sb.pid)
+            child.ps.cpu_percent(None)
+        except psutil.Error:
+            child.ps = None
+        self._next_standby_at = max(self._next_standby_at, now + STANDBY_SPACING_S)
+        return True
+
+    @staticmethod
+    def _end_standby(child: Child) -> None:
+        """Stop ``child``'s spare: stdin closed (it exits when it reads the end), its group
+        signalled."""
+        sb, child.standby, child.standby_ready = child.standby, None, False
+        if child.standby_pipe >= 0:
+            os.close(child.standby_pipe)
+            child.standby_pipe = -1
+        if sb is None:
+            return
+        try:
+            if sb.stdin is not None:
+                sb.stdin.close()
+        except OSError:
+            pass
+        for sig, wait_s in ((signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+            if sb.poll() is not None:
+                break
+            try:
+                os.killpg(sb.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                sb.wait(timeout=wait_s)
+            except subprocess.TimeoutExpired:
+                pass
+        try:
+            os.killpg(sb.pid, signal.SIGKILL)  # whatever it left in its group
+        except ProcessLookupError:
+            pass
+
+    def _start_child(self, child: Child) -> None:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        child.log_path = self.log_dir / f"{child.proc.name}.log"
+        if child.log_file is None:
+            child.log_file = open(child.log_path, "ab", buffering=0)  # noqa: SIM115
+        child.log_file.write(
+            f"\n=== start {time.strftime('%H:%M:%S')} (restart {child.restarts}) ===\n".encode()
+        )
+        child.popen = self._spawn(child, self._command(child), subprocess.DEVNULL)
         child.state = "starting"
         child.started_at = time.monotonic()
         child.ready_at = 0.0
@@ -516,6 +643,7 @@ class Supervisor:
             if (child.state == "starting" and not child.heartbeat
                     and now - child.started_at > 0.5):
                 child.state, child.ready_at = "ready", now
+        self._keep_standbys(now)
 
     def _on_exit(self, child: Child, code: int, now: float) -> None:
         # The leader is gone; whatever it left in its process group goes with it.
@@ -545,6 +673,8 @@ class Supervisor:
             return
         child.restart_times.append(now)
         child.restarts += 1
+        if self._take_over(child, now, how):
+            return
         n = len(child.restart_times)
         child.backoff_s = min(policy.backoff_initial_s * 2 ** (n - 1), policy.backoff_max_s)
         child.next_start_at = now + child.backoff_s
@@ -583,6 +713,8 @@ class Supervisor:
                 child.cpu_percent = child.rss_mb = 0.0
 
     def _shutdown(self) -> None:
+        for child in self.children.values():  # the spares first: nothing may take over now
+            self._end_standby(child)
         for name in reversed(self.order):
             child = self.children[name]
             if child.popen is not None:
@@ -594,6 +726,7 @@ class Supervisor:
             if child.log_file is not None:
                 child.log_file.close()
                 child.log_file = None
+        remove_checkpoints(self.link_token)  # the processes' saved states (runtime.checkpoint)
 
     # -- reporting -----------------------------------------------------------------------------
     def status_message(self) -> supervisor_status_t:
@@ -622,6 +755,10 @@ class Supervisor:
             p.affinity = child.affinity
             p.priority = child.priority
             p.detail = child.detail
+            if child.standby is not None and child.standby.poll() is None:
+                p.detail = (p.detail + "; " if p.detail else "") + (
+                    f"standby {child.standby.pid}"
+                    + ("" if child.standby_ready else " (setting up)"))
             msg.processes.append(p)
         me = process_status_t()  # the supervisor itself, so its cost is on record too
         me.name, me.host, me.state, me.pid = "supervisor", "laptop", self.state, os.getpid()
@@ -706,8 +843,9 @@ class Supervisor:
                 bad.append(name)
         for name in self._crashed():
             c = self.children[name]
+            spare = f" ({c.takeovers} by its standby)" if c.takeovers else ""
             self.out.write(f"crashed: {name}: {c.crashes} time(s), restarted {c.restarts} "
-                           f"time(s); last: {c.last_crash} (see its log)\n")
+                           f"time(s){spare}; last: {c.last_crash} (see its log)\n")
             if name not in bad:
                 bad.append(name)
         for c in self.children.values():

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
+import time
 from pathlib import Path
 
 from runtime.errors import BusError, ConfigError, MulticastRouteError
@@ -48,9 +50,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # the node is set up (runtime.loops.LiveRunner.run)
     for note in apply_scheduling(proc):
         (log.warning if "failed" in note else log.info)(note)
+    if args.standby:  # a spare: set up at the lowest priority, then wait (see _standby)
+        os.setpriority(os.PRIO_PROCESS, 0, 19)
     module = importlib.import_module(proc.module)
     if hasattr(module, "make_node"):
         node = module.make_node(proc, profile)
+        set_up = False
+        if args.standby:
+            if not _standby(node, proc, log):
+                return 0
+            set_up = True
         domains = sorted({profile.channel_domains.get(c.name, "network")
                           for c in (*proc.inputs.values(), *proc.outputs.values()) if not c.is_udp})
         log.info(
@@ -61,7 +70,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             proc.host,
             ", ".join(f"{d} ({profile.domains.get(d, profile.lcm_url)})" for d in domains),
         )
-        return LiveRunner(node, proc, profile).run(duration_s=args.duration)
+        return LiveRunner(node, proc, profile).run(duration_s=args.duration, set_up=set_up)
     if hasattr(module, "main"):
         _started(proc, profile)
         return int(module.main(proc, profile) or 0)
@@ -70,6 +79,44 @@ def _cmd_run(args: argparse.Namespace) -> int:
         proc.key("module"),
         f"module {proc.module} defines neither make_node(proc, profile) nor main(proc, profile)",
     )
+
+
+class _SetUpOnly:
+    """The context a standby's node is set up with: nothing may be sent yet."""
+
+    now_utime = 0
+
+    def publish(self, role: str, msg: object) -> None:
+        raise RuntimeError(f"this node publishes {role!r} during its set-up: it cannot wait as "
+                           "a standby (set restart.standby: false for it)")
+
+    def due(self, role: str) -> bool:
+        return False
+
+
+def _standby(node: object, proc: object, log: logging.Logger) -> bool:
+    """A spare copy of a process (``restart.standby``): set up and warmed up like the real
+    one, but bound to no port and subscribed to nothing, blocked on stdin until the
+    supervisor writes ``go`` (its process crashed); then it takes the process's own priority
+    and runs. True on ``go``; False when stdin closes (the launch is over)."""
+    t0 = time.monotonic()
+    node.setup(_SetUpOnly())  # type: ignore[attr-defined]
+    node.warm_up()  # type: ignore[attr-defined]
+    log.info("standby: set up in %.1f s, waiting for the supervisor's go", time.monotonic() - t0)
+    from runtime.supervisor import STANDBY_FD_ENV
+
+    if (fd := os.environ.get(STANDBY_FD_ENV)) is not None:
+        try:
+            os.write(int(fd), b"ready\n")
+            os.close(int(fd))
+        except (OSError, ValueError):
+            pass  # no supervisor listening: it learns nothing, the standby still waits
+    line = sys.stdin.readline()
+    if line.strip() != "go":
+        return False
+    os.setpriority(os.PRIO_PROCESS, 0, getattr(proc, "nice", None) or 0)
+    log.info("standby: taking over")
+    return True
 
 
 def _started(proc: object, profile: object) -> None:
@@ -139,6 +186,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("process")
     run.add_argument("--profile", required=True)
     run.add_argument("--duration", type=float, default=None)
+    run.add_argument("--standby", action="store_true",
+                     help="set up, then wait for `go` on stdin before running (the "
+                          "supervisor's spare for restart.standby)")
 
     bench = sub.add_parser("bench", help="a benchmark: " + ", ".join(BENCHMARKS))
     bench.add_argument("name", choices=BENCHMARKS)

@@ -24,7 +24,7 @@ import logging
 import numpy as np
 
 from lcmtypes import contact_t, robot_state_t
-from runtime.cassie_packets import LinkCounter, OutputPacket, PacketError
+from runtime.cassie_packets import OUTPUT_SIZE, LinkCounter, OutputPacket, PacketError
 from runtime.config import process_gains
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Context, Inbox, Node
@@ -32,6 +32,10 @@ from runtime.node import Context, Inbox, Node
 from .estimator import STATUS_PACKET_GAP, CassieEstimator, RejectedPacket
 from .kernels import OK
 from .params import DEFAULT_GAINS_FILE, EstimatorParams
+
+#: a saved state (``state_arrays``) is carried on from when the first packet comes at most
+#: this long after it (us of sim time); older, the estimator starts afresh
+MAX_CARRY_OVER_US = 50_000
 
 log = logging.getLogger(__name__)
 
@@ -65,6 +69,7 @@ class StateEstimatorNode(Node):
         self.rejected = 0
         self.estimator_resets = 0
         self._last_ok = False
+        self._restored = False
         self._loss_logs = 0
         self.published = 0
         self.last_error = ""
@@ -77,6 +82,16 @@ class StateEstimatorNode(Node):
         s = self._state
         s.num_positions, s.num_velocities, s.num_motors = int(m.nq), int(m.nv), 10
         self._nq, self._nqv = int(m.nq), int(m.nq + m.nv)
+
+    def state_arrays(self) -> list[np.ndarray]:
+        """The fused estimator's whole state (InEKF, contact, ALIP filter: two packed arrays),
+        carried over a crash: a successor that started afresh put the walking robot back
+        at the origin with zero velocity and no contact, and it fell (measured)."""
+        est = self.estimator
+        return [] if est is None or not est.fused else [est._S, est._N]
+
+    def restored(self) -> None:
+        self._restored = True  # judged on the first packet (tick): is it still that robot?
 
     def _reject(self, reason: str) -> None:
         self.rejected += 1
@@ -99,6 +114,16 @@ class StateEstimatorNode(Node):
             ctx.publish("state", self._state)
             return
         self._last_ok = False
+        if self._restored and len(data) == OUTPUT_SIZE:
+            self._restored = False
+            gap_us = int.from_bytes(bytes(data[4:12]), "little", signed=True) - est._last_utime
+            if not 0 < gap_us <= MAX_CARRY_OVER_US:
+                est.initialized = False  # too old (or another run's): start afresh
+                log.info("the saved state is %.1f ms from the first packet: starting afresh",
+                         gap_us / 1e3)
+            else:
+                log.info("carrying on from a state %.1f ms before the first packet",
+                         gap_us / 1e3)
         to_laptop = self.published % self._network_every == 0
         failed = ""
         try:

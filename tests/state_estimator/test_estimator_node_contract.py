@@ -71,3 +71,42 @@ def test_a_restarted_target_pc_reinitialises_the_estimator():
     assert node.rejected == RESTART_AFTER - 1  # the 200th stale packet restarts, accepted
     assert states[-1].header.utime == 500 * len(again)
     assert abs(states[-1].q[2] - 0.95) < 0.02  # re-initialised on the feet, not dead-reckoned
+
+
+def test_a_successor_carries_on_from_the_saved_state_or_starts_afresh_when_it_is_old(tmp_path):
+    """A killed estimator's standby loads its predecessor's state (runtime.checkpoint) and
+    publishes exactly what the predecessor would have; a state 75 ms older than the first
+    packet (over MAX_CARRY_OVER_US) is no longer that robot's: it starts afresh."""
+    from runtime.checkpoint import StateCheckpoint
+
+    pkts = _packets(400)
+    first, h1, states1, _ = _rig()
+    for i, raw in enumerate(pkts[:200]):
+        h1.inject("OUT", raw, at_us=1000 * i)
+    h1.run_until(200_000)
+    path = tmp_path / "est.state"
+    StateCheckpoint(path, first.state_arrays()).save()
+    for i, raw in enumerate(pkts[200:300]):
+        h1.inject("OUT", raw, at_us=200_000 + 1000 * i)
+    h1.run_until(10**6)
+
+    second, h2, states2, _ = _rig()
+    h2.run_until(1)  # set up
+    assert StateCheckpoint(path, second.state_arrays()).load()
+    second.restored()
+    for i, raw in enumerate(pkts[200:300]):
+        h2.inject("OUT", raw, at_us=1000 * i)
+    h2.run_until(10**6)
+    assert len(states2) == 100
+    for a, b in zip(states1[200:300], states2, strict=True):
+        assert a.header.utime == b.header.utime and a.q == b.q and a.v == b.v
+        assert a.status == b.status and a.alip_x == b.alip_x
+
+    late, h3, states3, _ = _rig()
+    h3.run_until(1)
+    StateCheckpoint(path, late.state_arrays()).load()
+    late.restored()
+    for i, raw in enumerate(pkts[350:]):  # 75 ms of packets missed
+        h3.inject("OUT", raw, at_us=1000 * i)
+    h3.run_until(10**6)
+    assert states3[0].status & STATUS_INITIALIZING
