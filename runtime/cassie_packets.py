@@ -106,7 +106,8 @@ INPUT_SIZE = INPUT_LAYOUT.itemsize  # 92
 _FLAGS_AT = INPUT_LAYOUT.fields["flags"][1]  # byte offset of InputPacket.flags
 #: byte offset of the torque packet's pairing token
 TOKEN_AT = INPUT_LAYOUT.fields["token"][1]
-
+#: ... and of the robot output's utime (int64)
+UTIME_AT = OUTPUT_LAYOUT.fields["utime"][1]
 
 
 class PacketError(ValueError):
@@ -323,15 +324,7 @@ class InputPacket(Packet):
         super().__init__()
         self.torque = self.field("torque")
         self._flags = self.field("flags")
-        self.field("token")[0] = token
-
-    @property
-    def token(self) -> int:
-        return int.from_bytes(self.buffer[TOKEN_AT:TOKEN_AT + 4], "little")
-
-    @token.setter
-    def token(self, value: int) -> None:
-        self.field("token")[0] = value
+        self.field("token")[0] = token  # set once: every packet this bridge sends carries it
 
     @property
     def flags(self) -> int:

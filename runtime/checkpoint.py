@@ -2,10 +2,11 @@
 
 A process that is killed mid-walk and replaced (by its standby, or by a restart) starts its
 algorithm from scratch; for the state estimator that meant a pose back at the origin, zero
-velocity and no contact while Cassie walked on, and a fall 0.6 s later (measured). A node
+velocity and no contact while Cassie walked on, and a fall 1.5 s later (measured). A node
 that lists the arrays holding its whole state (``Node.state_arrays``) gets them copied after
 every tick into a file in ``/dev/shm`` (a memory map: a memcpy, no system call; ~4.5 KB for
-the estimator); its successor in the same launch loads them before its first tick.
+the estimator, 2.6 us of CPU a save here, ~0.5 % of a core at 2 kHz); its successor in the
+same launch loads them before its first tick.
 
 Two slots, written in turn: a slot's sequence number is zeroed before its payload is written
 and set after, so a writer killed mid-copy leaves the other slot as the newest valid one.
@@ -48,47 +49,37 @@ class StateCheckpoint:
     def __init__(self, path: Path, arrays: list[np.ndarray]) -> None:
         if not all(a.flags.c_contiguous for a in arrays):
             raise ValueError("a node's state arrays must be contiguous (they are copied as bytes)")
-        self.arrays = arrays
         self.path = path
-        self._size = sum(a.nbytes for a in arrays)
-        slot = 8 + self._size  # int64 sequence number, then the payload
-        self._slot = slot
-        new = not path.exists() or path.stat().st_size != 2 * slot
-        if new:
+        size = sum(a.nbytes for a in arrays)
+        slot = 8 + size  # int64 sequence number, then the payload
+        if not path.exists() or path.stat().st_size != 2 * slot:
             with open(path, "wb") as f:
                 f.truncate(2 * slot)
         self._map = np.memmap(path, dtype=np.uint8, mode="r+", shape=(2 * slot,))
         self._seq = [self._map[k * slot:k * slot + 8].view(np.int64) for k in (0, 1)]
         self._payload = [self._map[k * slot + 8:(k + 1) * slot] for k in (0, 1)]
-        self._views = [a.reshape(-1).view(np.uint8) for a in arrays]
+        views = [a.reshape(-1).view(np.uint8) for a in arrays]
+        ends = np.cumsum([0] + [v.size for v in views])
+        #: per slot, (its part of the payload, the array's bytes): made once, not per save
+        self._parts = [[(self._payload[k][ends[i]:ends[i + 1]], v) for i, v in enumerate(views)]
+                       for k in (0, 1)]
         self._counter = max(int(self._seq[0][0]), int(self._seq[1][0]))
-        self.saves = 0
 
     def save(self) -> None:
         """Copy the arrays into the older slot, then mark it the newest."""
         self._counter += 1
         k = self._counter & 1
-        seq, out = self._seq[k], self._payload[k]
+        seq = self._seq[k]
         seq[0] = 0
-        o = 0
-        for v in self._views:
-            out[o:o + v.size] = v
-            o += v.size
+        for dst, src in self._parts[k]:
+            np.copyto(dst, src)
         seq[0] = self._counter
-        self.saves += 1
 
     def load(self) -> bool:
         """Copy the newest valid slot into the arrays; False when there is none."""
         s0, s1 = int(self._seq[0][0]), int(self._seq[1][0])
         if s0 <= 0 and s1 <= 0:
             return False
-        src = self._payload[0 if s0 > s1 else 1]
-        o = 0
-        for v in self._views:
-            v[:] = src[o:o + v.size]
-            o += v.size
+        for src, dst in self._parts[0 if s0 > s1 else 1]:
+            np.copyto(dst, src)
         return True
-
-    def close(self) -> None:
-        self._map.flush()
-        del self._map

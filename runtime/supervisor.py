@@ -79,6 +79,30 @@ def _child_preexec(cpus: tuple[int, ...] | None = None) -> None:
         pass
 
 
+def _stop_group(popen: subprocess.Popen[bytes],
+                steps: tuple[tuple[int, float], ...]) -> str:
+    """Signal ``popen``'s process group with each (signal, seconds to wait) in turn until it
+    exits, then SIGKILL whatever is left in the group; returns the name of the last signal
+    it did not stop on ('' if none)."""
+    ignored = ""
+    for sig, wait_s in steps:
+        if popen.poll() is not None:
+            break
+        try:
+            os.killpg(popen.pid, sig)
+        except ProcessLookupError:
+            pass
+        try:
+            popen.wait(timeout=wait_s)
+        except subprocess.TimeoutExpired:
+            ignored = signal.Signals(sig).name
+    try:
+        os.killpg(popen.pid, signal.SIGKILL)  # the leader is gone: sweep its stragglers
+    except ProcessLookupError:
+        pass
+    return ignored
+
+
 @dataclass
 class Child:
     """The supervisor's record of one process."""
@@ -163,7 +187,7 @@ class Supervisor:
         check_first: bool = True,
     ) -> None:
         self.profile = profile
-        #: this launch's sim <-> bridge pairing token (runtime.cassie_packets.link_token)
+        #: this launch's sim <-> bridge pairing token (runtime.pairing.link_token)
         self.link_token = secrets.randbits(32) | 1
         #: build every node once (``cassie check``) before anything starts
         self.check_first = check_first
@@ -427,21 +451,7 @@ class Supervisor:
                 sb.stdin.close()
         except OSError:
             pass
-        for sig, wait_s in ((signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
-            if sb.poll() is not None:
-                break
-            try:
-                os.killpg(sb.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                sb.wait(timeout=wait_s)
-            except subprocess.TimeoutExpired:
-                pass
-        try:
-            os.killpg(sb.pid, signal.SIGKILL)  # whatever it left in its group
-        except ProcessLookupError:
-            pass
+        _stop_group(sb, ((signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)))
 
     def _start_child(self, child: Child) -> None:
         self.log_dir.mkdir(parents=True, exist_ok=True)
@@ -484,21 +494,11 @@ class Supervisor:
         if child.popen is None:
             return
         child.state = "stopping"
-        for sig, wait_s in (
-            (signal.SIGINT, self.grace[0]),
-            (signal.SIGTERM, self.grace[1]),
-            (signal.SIGKILL, 2.0),
-        ):
-            if child.popen.poll() is not None:
-                break
-            self._signal_group(child, sig)
-            try:
-                child.popen.wait(timeout=wait_s)
-            except subprocess.TimeoutExpired:
-                child.detail = f"did not stop on {signal.Signals(sig).name}"
-                continue
-        # the leader is gone; sweep any stragglers left in its group
-        self._signal_group(child, signal.SIGKILL)
+        ignored = _stop_group(child.popen, ((signal.SIGINT, self.grace[0]),
+                                            (signal.SIGTERM, self.grace[1]),
+                                            (signal.SIGKILL, 2.0)))
+        if ignored:
+            child.detail = f"did not stop on {ignored}"
         child.exit_code = child.popen.returncode if child.popen.returncode is not None else 0
         child.popen = None
         child.ps = None
@@ -572,13 +572,10 @@ class Supervisor:
         cmd = [sys.executable, "-m", "tools.cli", "check", str(self.profile.path)]
         for n in names:
             cmd += ["--process", n]
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT), env.get("PYTHONPATH", "")]).rstrip(
-            os.pathsep)
         t0 = time.monotonic()
         try:
-            res = subprocess.run(cmd, cwd=str(REPO_ROOT), env=env, capture_output=True,
-                                 text=True, timeout=300)
+            res = subprocess.run(cmd, cwd=str(REPO_ROOT), env=self._child_env(),
+                                 capture_output=True, text=True, timeout=300)
         except subprocess.TimeoutExpired:
             self.out.write("checking the profile's processes took over 300 s; not started\n")
             return False

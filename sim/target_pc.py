@@ -323,7 +323,7 @@ class TargetPC:
     def __init__(self, core: SimCore, mode: Mode = "realtime", steps_per_command: int = 1,
                  token: int = DEFAULT_TOKEN) -> None:
         self.core = core
-        #: the pairing token a torque packet must carry (``cassie_packets.link_token``)
+        #: the pairing token a torque packet must carry (``runtime.pairing.link_token``)
         self.token = token
         self._token = token_bytes(token)
         self.mode = mode

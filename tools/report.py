@@ -391,6 +391,14 @@ LINKS = (
 )
 
 
+def _rise(t: list[int], v: list[float], span: tuple[float, float]) -> float:
+    """How much a counter sampled at times ``t`` rose over ``span`` (interpolated; 0 with
+    fewer than two samples)."""
+    if len(t) < 2:
+        return 0.0
+    return float(np.interp(span[1], t, v) - np.interp(span[0], t, v))
+
+
 def _link(by_proc: dict[str, tuple[list[Any], list[int]]]) -> dict[str, dict[str, float]]:
     """Datagrams each way over the span both ends reported: sent by one end, received by the
     other, the difference (lost on the wire or in a full socket buffer: what an 8-bit seq
@@ -408,14 +416,10 @@ def _link(by_proc: dict[str, tuple[list[Any], list[int]]]) -> dict[str, dict[str
         t0, t1 = max(st[0], rt_[0]), min(st[-1], rt_[-1])
         if t1 <= t0:
             continue
-        sent = float(np.interp(t1, st, sv) - np.interp(t0, st, sv))
-        recv = float(np.interp(t1, rt_, rv) - np.interp(t0, rt_, rv))
-        gaps = float(np.interp(t1, gt, gv) - np.interp(t0, gt, gv)) if len(gt) >= 2 else 0.0
-        rejected = 0.0  # arrived but refused: malformed, off range, another launch's token
-        for key in rejected_keys:
-            kt, kv = _counter_series(*by_proc[rx], key)
-            if len(kt) >= 2:
-                rejected += float(np.interp(t1, kt, kv) - np.interp(t0, kt, kv))
+        span = (t0, t1)
+        sent, recv, gaps = _rise(st, sv, span), _rise(rt_, rv, span), _rise(gt, gv, span)
+        # arrived but refused: malformed, off range, another launch's token
+        rejected = sum(_rise(*_counter_series(*by_proc[rx], key), span) for key in rejected_keys)
         out[name] = {"sent": sent, "received": recv, "lost": max(sent - recv, 0.0),
                      "lost_ratio": max(sent - recv, 0.0) / sent if sent > 0 else 0.0,
                      "seq_gaps": gaps, "rejected": rejected, "span_s": (t1 - t0) / 1e6}

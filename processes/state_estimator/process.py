@@ -24,7 +24,13 @@ import logging
 import numpy as np
 
 from lcmtypes import contact_t, robot_state_t
-from runtime.cassie_packets import OUTPUT_SIZE, LinkCounter, OutputPacket, PacketError
+from runtime.cassie_packets import (
+    OUTPUT_SIZE,
+    UTIME_AT,
+    LinkCounter,
+    OutputPacket,
+    PacketError,
+)
 from runtime.config import process_gains
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Context, Inbox, Node
@@ -116,7 +122,8 @@ class StateEstimatorNode(Node):
         self._last_ok = False
         if self._restored and len(data) == OUTPUT_SIZE:
             self._restored = False
-            gap_us = int.from_bytes(bytes(data[4:12]), "little", signed=True) - est._last_utime
+            utime = int.from_bytes(bytes(data[UTIME_AT:UTIME_AT + 8]), "little", signed=True)
+            gap_us = utime - est._last_utime
             if not 0 < gap_us <= MAX_CARRY_OVER_US:
                 est.initialized = False  # too old (or another run's): start afresh
                 log.info("the saved state is %.1f ms from the first packet: starting afresh",
