@@ -21,6 +21,7 @@ def _profile(tmp_path: Path, body: str) -> Path:
     return p
 
 
+@pytest.mark.timing  # wall-clock rates of a live loop: for a quiet machine, not the default run
 def test_the_sim_runs_at_half_speed_with_rtf_one_half(lcm_url, procs, tmp_path):
     prof = _profile(tmp_path, "rtf: 0.5\n")
     bus = profile_bus(prof)
