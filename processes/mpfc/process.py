@@ -321,7 +321,10 @@ class MpfcNode(Node):
 
 def _static_footholds(spec: str, proc: ProcessConfig, profile: Profile) -> list[Foothold]:
     if spec == "flat":
-        big = 50.0
+        # one square with no edge within any run: 1 km each way is 45 min of walking (a 50 m
+        # one ended long live runs: Cassie stepped in place at x = 50 m, its next footstep
+        # clamped to the edge). The rows are unit normals, so the size costs the solve nothing.
+        big = 1000.0
         return [
             Foothold.from_polygon(np.array([[-big, -big], [big, -big], [big, big], [-big, big]]))
         ]

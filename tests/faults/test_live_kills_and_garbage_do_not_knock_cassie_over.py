@@ -78,6 +78,9 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         msg = status.latest()
         if msg is not None:
             procs.update({p.name: p for p in msg.processes})
+            sim = procs.get("sim")
+            if sim is not None and "FELL" in sim.status:  # no use waiting for a walk
+                raise AssertionError(f"Cassie fell: {sim.status}")
 
     def ready(name: str) -> bool:
         p = procs.get(name)
