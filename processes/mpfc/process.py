@@ -158,6 +158,7 @@ class MpfcNode(Node):
         self._reachable: tuple[list[Foothold] | None, float, list[Foothold]] = (None, math.nan, [])
         self.map = MapHeight()
         self.stance: int | None = None
+        self._air_foot: int | None = None  # started mid-step: the foot that was in the air
         self.touchdown_s = 0.0
         self.next_touchdown_s = 0.0
         self.stance_pos = np.zeros(3)
@@ -205,8 +206,15 @@ class MpfcNode(Node):
         self.kin.update(q, v)
         yaw = self.kin.pelvis_yaw()
         p = self.params
-        if self.stance is None:  # start walking as if the left foot just touched down: the
-            self.stance = LEFT  # gait begins in double stance, where the OSC hands over
+        if self.stance is None:
+            stance = self._first_stance(state)
+            if stance is None:
+                self.last_status = ("started with a foot in the air: waiting for its touchdown "
+                                    "to take the gait from the robot")
+                return
+            # at the first start: as if the left foot just touched down (the gait begins in
+            # double stance, where the OSC hands over); restarted mid-walk: the foot that did
+            self.stance = stance
             self.touchdown_s = t
             self.next_touchdown_s = self.touchdown_s + p.t_s2s_s
             self.solver.reset()
@@ -237,6 +245,27 @@ class MpfcNode(Node):
         else:
             self.failures += 1
         self._publish(ctx, state, sol, sol.status, yaw, x)
+
+    def _first_stance(self, state: robot_state_t) -> int | None:
+        """The stance the gait clock starts on, or None to wait for one.
+
+        The gait is timed from touchdowns (Fig. 4), and this loop keeps the clock. Started
+        with the robot standing (no foot in the air), it begins as if the left foot had just
+        touched down. Started while one foot is in the air -- a restart mid-walk, with the
+        OSC stepping on its own meanwhile (``processes.osc.fallback``) -- a clock started
+        there would put the stance on a swinging foot: measured live, a restarted MPFC then
+        planned 0.9 m steps and Cassie fell. So it waits for that foot's touchdown (both feet
+        in contact, from the estimator's contact flags) and starts the clock on it; the
+        OSC's own gait touches down on the same foot at the same moment, and hands back."""
+        down = [bool(c) for c in state.in_contact]
+        if self._air_foot is None:  # the first state
+            if sum(down) != 1:
+                return LEFT
+            self._air_foot = 0 if down[1] else 1
+        if sum(down) == 1:
+            self._air_foot = 0 if down[1] else 1
+            return None
+        return self._air_foot if all(down) else None
 
     def _reachable_footholds(self) -> list[Foothold]:
         """The footholds within ``max_height_m`` of the stance foot (see the module docstring);

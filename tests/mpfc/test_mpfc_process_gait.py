@@ -23,7 +23,8 @@ class StateReplay(Node):
     name = "replay"
     outputs = {"state": robot_state_t}
 
-    def __init__(self, speed: float) -> None:
+    def __init__(self, speed: float, contact=None) -> None:  # type: ignore[no-untyped-def]
+        self.contact = contact  # t -> [left down, right down] (None: no contact flags)
         self.m = load_model()
         d = mujoco.MjData(self.m)
         mujoco.mj_resetDataKeyframe(self.m, d, 0)
@@ -41,6 +42,8 @@ class StateReplay(Node):
         msg.header.utime = ctx.now_utime
         msg.num_positions, msg.num_velocities, msg.num_motors = self.m.nq, self.m.nv, 10
         msg.q, msg.v, msg.motor_torque = q.tolist(), v.tolist(), [0.0] * 10
+        if self.contact is not None:
+            msg.in_contact = list(self.contact(t))
         ctx.publish("state", msg)
 
 
@@ -57,7 +60,7 @@ def _proc(**params) -> ProcessConfig:  # type: ignore[no-untyped-def]
     )
 
 
-def _run(seconds: float, **params):  # type: ignore[no-untyped-def]
+def _run(seconds: float, contact=None, **params):  # type: ignore[no-untyped-def]
     from runtime.config import HW_CONFIG_DIR
 
     profile = type("P", (), {"resolve": lambda self, p: HW_CONFIG_DIR / p,
@@ -65,7 +68,7 @@ def _run(seconds: float, **params):  # type: ignore[no-untyped-def]
     node = make_node(_proc(**params), profile)
     h = Harness(
         [
-            Binding(StateReplay(0.3), inputs={}, outputs={"state": "S"}),
+            Binding(StateReplay(0.3, contact), inputs={}, outputs={"state": "S"}),
             Binding(
                 node,
                 inputs={"state": "S", "footholds": "F", "elevation_map": "E", "command": "C"},
@@ -132,3 +135,18 @@ def test_footsteps_land_on_ground_truth_stones():
 def test_bad_foothold_source_names_the_key():
     with pytest.raises(ConfigError, match=r"processes\.mpfc\.params\.footholds"):
         _run(0.1, footholds="lidar")
+
+
+def test_a_restart_mid_step_waits_for_the_touchdown_and_takes_the_robots_stance():
+    # the robot on its left foot, the right in the air until it lands at t = 0.2 s
+    _, plans = _run(0.5, contact=lambda t: (True, t >= 0.2), footholds="flat")
+    assert plans, "no plan after the touchdown"
+    first = plans[0]
+    assert abs(first.header.utime * 1e-6 - 0.2) < 0.006  # nothing planned from a swinging foot
+    assert first.stance == 1 and first.gait_state in GAIT_DS  # the right foot just landed
+    assert abs(first.prev_switch_time_s - first.header.utime * 1e-6) < 1e-9
+
+
+def test_a_start_with_both_feet_down_begins_on_the_left_foot_at_once():
+    _, plans = _run(0.1, contact=lambda t: (True, True), footholds="flat")
+    assert plans[0].header.utime == 0 and plans[0].stance == 0
