@@ -75,6 +75,13 @@ class StateCheckpoint:
             np.copyto(dst, src)
         seq[0] = self._counter
 
+    def remove(self) -> None:
+        """Delete the file (the launch is over: no successor will load it)."""
+        try:
+            self.path.unlink()
+        except OSError:
+            pass
+
     def load(self) -> bool:
         """Copy the newest valid slot into the arrays; False when there is none."""
         s0, s1 = int(self._seq[0][0]), int(self._seq[1][0])

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import gc
 import logging
+import os
 import select
 import signal
 import threading
@@ -257,6 +258,7 @@ class LiveRunner:
         ``set_up``: the node's ``setup`` and ``warm_up`` were done already (a standby)."""
         self._install_signals()
         _set_timer_slack_ns(1000)
+        self._parent = os.getppid()  # (a successor exists only while this parent lives)
         if not set_up:
             self.node.setup(self.ctx)
             self.node.warm_up()
@@ -292,6 +294,11 @@ class LiveRunner:
             if receiver is not None:
                 receiver.join(1.0)
             self.node.close()
+            ck = self.guard.checkpoint
+            if ck is not None and os.getppid() != self._parent:
+                # the supervisor is gone (killed: no one removes the launch's state files and
+                # no successor will load this one): leave nothing behind in /dev/shm
+                ck.remove()
             for s in self._udp_out.values():
                 s.close()
             for p in self.ports.values():
