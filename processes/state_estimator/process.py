@@ -74,7 +74,10 @@ class StateEstimatorNode(Node):
         self.pkt = OutputPacket()
         self.rejected = 0
         self.estimator_resets = 0
-        self._last_ok = False
+        #: the datagram the newest published state was estimated from (a copy: garbage or a
+        #: rejected packet in between must not make its lockstep resend look new)
+        self._last_good = bytearray(OUTPUT_SIZE)
+        self._have_good = False
         self._restored = False
         self._loss_logs = 0
         self.published = 0
@@ -112,14 +115,14 @@ class StateEstimatorNode(Node):
         est = self.estimator
         assert est is not None
         pkt, link = self.pkt, self.link
-        if (self._last_ok and data[0] == self._last_seq and len(data) == len(pkt.buffer)
-                and bytes(data) == bytes(pkt.buffer)):
-            # the same datagram again (lockstep resends a state whose answer was lost):
+        if self._have_good and data[0] == self._last_seq and data == self._last_good:
+            # the same datagram again (lockstep resends a state whose answer was lost), even
+            # with garbage between the two (measured: a zero-filled datagram in between made
+            # the resend "stale", rejected, resent for ever, and the lockstep loop stalled):
             # count it and answer it again, so the torque bridge re-sends its command
             link.on_receive(data[0], data[1])
             ctx.publish("state", self._state)
             return
-        self._last_ok = False
         if self._restored and len(data) == OUTPUT_SIZE:
             self._restored = False
             utime = int.from_bytes(bytes(data[UTIME_AT:UTIME_AT + 8]), "little", signed=True)
@@ -157,7 +160,9 @@ class StateEstimatorNode(Node):
                 self.last_error = failed
             self._reject(failed or "estimate became non-finite")
             return
-        self._last_ok = True  # pkt.buffer now holds the packet this state was estimated from
+        if len(data) == OUTPUT_SIZE:  # (a copy into the buffer kept for it: no allocation)
+            self._last_good[:] = data
+            self._have_good = True
         self._last_seq = data[0]
         utime, status, stance, c0, c1, alip_changed, target_status = est.out_ints.tolist()
         ctx.now_utime = utime  # a raw packet drove this tick: its utime is the sim time

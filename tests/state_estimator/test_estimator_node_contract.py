@@ -60,6 +60,20 @@ def test_a_resent_packet_is_answered_again_not_rejected():
     assert node.rejected == 0 and node.link.duplicates == 1 and node.link.lost == 0
 
 
+def test_a_resend_after_garbage_is_still_answered_as_the_same_state():
+    from runtime.cassie_packets import OUTPUT_SIZE
+
+    node, h, states, _ = _rig()
+    pkts = _packets(5)
+    # lockstep: the answer to the 3rd state was lost, a zero-filled datagram came in between,
+    # and the sim resent its 3rd packet (twice) before it got its answer and went on
+    for i, raw in enumerate([*pkts[:3], bytes(OUTPUT_SIZE), pkts[2], pkts[2], *pkts[3:]]):
+        h.inject("OUT", raw, at_us=1000 * i)
+    h.run_until(10**6)
+    assert [s.header.utime for s in states] == [500, 1000, 1500, 1500, 1500, 2000, 2500]
+    assert node.rejected == 1 and node.link.duplicates == 2
+
+
 def test_a_restarted_target_pc_reinitialises_the_estimator():
     node, h, states, _ = _rig()
     first = _packets(300)
