@@ -128,7 +128,8 @@ def test_launch_stop_cycles_leave_no_orphans_ports_or_state_files(tmp_path, monk
     port = random.randrange(20000, 60000, 10)
     monkeypatch.setenv("CASSIE_LCM_URL", f"udpm://239.255.76.67:{port}")
     profile_path = tmp_path / "cycles.yaml"
-    profile_path.write_text(f"include: [{HW_CONFIG_DIR / 'sim.yaml'}]\nprofile: cycles\n")
+    profile_path.write_text(f"include: [{HW_CONFIG_DIR / 'sim.yaml'}]\nprofile: cycles\n"
+                            f"launch: [{', '.join(PROCESSES)}]\n")
     profile = load_profile(profile_path)
     udp_ports = [(ch.udp[0], ch.udp[1]) for ch in profile.channels.values() if ch.is_udp]
     rng = random.Random(14)
