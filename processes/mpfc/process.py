@@ -258,13 +258,11 @@ class MpfcNode(Node):
         in contact, from the estimator's contact flags) and starts the clock on it; the
         OSC's own gait touches down on the same foot at the same moment, and hands back."""
         down = [bool(c) for c in state.in_contact]
-        if self._air_foot is None:  # the first state
-            if sum(down) != 1:
-                return LEFT
-            self._air_foot = 0 if down[1] else 1
-        if sum(down) == 1:
+        if sum(down) == 1:  # one foot in the air: remember which, and wait
             self._air_foot = 0 if down[1] else 1
             return None
+        if self._air_foot is None:  # the first state, with no foot in the air
+            return LEFT
         return self._air_foot if all(down) else None
 
     def _reachable_footholds(self) -> list[Foothold]:

@@ -74,10 +74,10 @@ class StateEstimatorNode(Node):
         self.pkt = OutputPacket()
         self.rejected = 0
         self.estimator_resets = 0
-        #: the datagram the newest published state was estimated from (a copy: garbage or a
-        #: rejected packet in between must not make its lockstep resend look new)
+        #: the datagram the newest published state was estimated from, seq ``_last_seq``
+        #: (a copy: garbage or a rejected packet in between must not make its lockstep
+        #: resend look new)
         self._last_good = bytearray(OUTPUT_SIZE)
-        self._have_good = False
         self._restored = False
         self._loss_logs = 0
         self.published = 0
@@ -115,7 +115,7 @@ class StateEstimatorNode(Node):
         est = self.estimator
         assert est is not None
         pkt, link = self.pkt, self.link
-        if self._have_good and data[0] == self._last_seq and data == self._last_good:
+        if data[0] == self._last_seq and data == self._last_good:
             # the same datagram again (lockstep resends a state whose answer was lost), even
             # with garbage between the two (measured: a zero-filled datagram in between made
             # the resend "stale", rejected, resent for ever, and the lockstep loop stalled):
@@ -160,9 +160,7 @@ class StateEstimatorNode(Node):
                 self.last_error = failed
             self._reject(failed or "estimate became non-finite")
             return
-        if len(data) == OUTPUT_SIZE:  # (a copy into the buffer kept for it: no allocation)
-            self._last_good[:] = data
-            self._have_good = True
+        self._last_good[:] = data  # (an accepted datagram is OUTPUT_SIZE long: no allocation)
         self._last_seq = data[0]
         utime, status, stance, c0, c1, alip_changed, target_status = est.out_ints.tolist()
         ctx.now_utime = utime  # a raw packet drove this tick: its utime is the sim time
