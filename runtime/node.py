@@ -136,6 +136,10 @@ class Inbox(Protocol):
         """The oldest message not taken yet on an ``each`` input (``Node.input_policy``),
         else None."""
 
+    def newest_raw(self, role: str) -> bytes | None:
+        """The newest payload of ``role`` as it came off the wire if it was not decoded yet
+        (unchecked: read a field or two without paying for a decode), else None."""
+
 
 class Node:
     """Base class for every process's algorithm shell.

@@ -143,6 +143,10 @@ class PortBuffer:
         """The last decoded message, without consuming anything."""
         return self._decoded
 
+    def raw(self) -> bytes | None:
+        """The newest payload not decoded yet (``newest`` policy), or None; unchecked."""
+        return self._raw
+
     def _stamp_arrival(self) -> None:
         self.received += 1
         self.last_receive_ns = time.monotonic_ns()
@@ -157,7 +161,8 @@ class PortInbox:
 
     def latest(self, role: str) -> Any | None:
         port = self._ports[role]
-        return port.latest() if port.fresh else port.peek()
+        # (a payload a loop read undecoded, ``newest_raw``, is still the newest: decode it)
+        return port.latest() if port.fresh or port.raw() is not None else port.peek()
 
     def is_fresh(self, role: str) -> bool:
         return self._ports[role].fresh
@@ -167,3 +172,6 @@ class PortInbox:
 
     def pop(self, role: str) -> Any | None:
         return self._ports[role].pop()
+
+    def newest_raw(self, role: str) -> bytes | None:
+        return self._ports[role].raw()

@@ -160,3 +160,6 @@ class DirectInbox:
 
     def is_fresh(self, role: str) -> bool:
         return role in self.messages
+
+    def newest_raw(self, role: str) -> bytes | None:
+        return None  # (messages here are decoded already)
