@@ -9,6 +9,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from runtime.errors import BusError, ConfigError, MulticastRouteError
 
@@ -34,7 +35,7 @@ def _cmd_launch(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from runtime.config import load_profile
     from runtime.loops import LiveRunner
-    from runtime.scheduling import apply_scheduling
+    from runtime.scheduling import apply_scheduling, pin_to_supervisor_host
 
     profile = load_profile(args.profile)
     if args.process not in profile.processes:
@@ -52,6 +53,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         (log.warning if "failed" in note else log.info)(note)
     if args.standby:  # a spare: set up at the lowest priority, then wait (see _standby)
         os.setpriority(os.PRIO_PROCESS, 0, 19)
+        # ... and away from its host's CPUs: a minute of numba loading and warm-up beside the
+        # NUC's loops, even at nice 19, took 16 % of their CPU and its caches (perf sched,
+        # measured), and their deadlines with it. It moves home once it is set up.
+        pin_to_supervisor_host(profile)
     module = importlib.import_module(proc.module)
     if hasattr(module, "make_node"):
         node = module.make_node(proc, profile)
@@ -70,7 +75,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             proc.host,
             ", ".join(f"{d} ({profile.domains.get(d, profile.lcm_url)})" for d in domains),
         )
-        return LiveRunner(node, proc, profile).run(duration_s=args.duration, set_up=set_up)
+        runner = LiveRunner(node, proc, profile)
+        if prof_dir := os.environ.get(CPROFILE_ENV):
+            return _profiled(runner, Path(prof_dir) / f"{proc.name}.prof", args.duration, set_up)
+        return runner.run(duration_s=args.duration, set_up=set_up)
     if hasattr(module, "main"):
         _started(proc, profile)
         return int(module.main(proc, profile) or 0)
@@ -79,6 +87,27 @@ def _cmd_run(args: argparse.Namespace) -> int:
         proc.key("module"),
         f"module {proc.module} defines neither make_node(proc, profile) nor main(proc, profile)",
     )
+
+
+#: set to a folder, ``cassie run`` profiles its loop with cProfile and writes
+#: ``<folder>/<process>.prof`` when it stops (a launch passes it on to every process): where a
+#: live loop's CPU goes, ticks and runtime glue alike (cProfile roughly doubles the cost of
+#: Python calls: compare call counts and shares, not absolute times)
+CPROFILE_ENV = "CASSIE_CPROFILE_DIR"
+
+
+def _profiled(runner: Any, out: Path, duration: float | None, set_up: bool) -> int:
+    """``runner.run`` under cProfile, the statistics written to ``out`` (pstats format)."""
+    import cProfile
+
+    prof = cProfile.Profile()
+    prof.enable()
+    try:
+        return runner.run(duration_s=duration, set_up=set_up)
+    finally:
+        prof.disable()
+        out.parent.mkdir(parents=True, exist_ok=True)
+        prof.dump_stats(str(out))
 
 
 class _SetUpOnly:
@@ -103,6 +132,11 @@ def _standby(node: object, proc: object, log: logging.Logger) -> bool:
     node.setup(_SetUpOnly())  # type: ignore[attr-defined]
     node.warm_up()  # type: ignore[attr-defined]
     log.info("standby: set up in %.1f s, waiting for the supervisor's go", time.monotonic() - t0)
+    if aff := getattr(proc, "cpu_affinity", None):  # home to its host's CPUs (it only waits)
+        try:
+            os.sched_setaffinity(0, aff)
+        except OSError as exc:
+            log.warning("standby: cpu affinity %s: failed (%s)", list(aff), exc.strerror)
     from runtime.supervisor import STANDBY_FD_ENV
 
     if (fd := os.environ.get(STANDBY_FD_ENV)) is not None:
