@@ -140,3 +140,21 @@ def test_both_strategies_agree_on_a_stream_of_warm_solves(params) -> None:
             x = solver.model.expm_a(0.03) @ x + rng.normal(0, 1, 4) * [0.003, 0.003, 0.3, 0.3]
             t -= 0.03
     assert seen == {"optimal", "infeasible"}
+
+
+def test_one_foothold_is_solved_as_its_one_qp(params) -> None:
+    """Flat ground has one foothold, so (15) has one assignment: the search solves that one
+    QP (no root relaxation) and still equals the reference, with and without the trust
+    region of a later solve in the same stance."""
+    solver = MpfcSolver(with_params(params, time_limit_ms=SLOW_OK))
+    rng = np.random.default_rng(31)
+    for _ in range(4):
+        inst = random_instance(rng, solver.model, 1)
+        solver.reset()
+        for t in (0.36, 0.2):
+            sol = solve(solver, inst, t_remaining_s=t)
+            ref, _ = reference(solver)
+            assert objective_matches(sol, ref), (sol.status, sol.objective, ref)
+            assert sol.nodes_explored == 1
+            if sol.has_plan:
+                assert sol.foothold_indices == (0,) * solver.params.horizon_steps
