@@ -24,6 +24,7 @@ from .controller import SAFE, OscController
 from .fallback import PlanFallback
 from .model import CassieModel
 from .tasks import DEFAULT_GAINS_FILE, OscParams
+from .walking import STANDING as GAIT_STANDING
 
 _KNOWN_PARAMS = ("gains_file", "start", "hold_until_plan", "stand_first_s")
 #: ticks of the set-up warm-up (0.5 ms each): standing, hand-over, single and double stance
@@ -128,8 +129,11 @@ class OscNode(Node):
                 self._walk_from_us = 0
                 ctrl.resume()
         if self._hold_until_plan:
-            if plan is None:
-                self._publish_off(ctx, state)
+            if plan is None or int(plan.gait_state) == GAIT_STANDING:
+                # no plan yet, or the MPFC's "standing" while it has none (no footholds yet:
+                # S3 starts after it). Measured live with all six processes: released on
+                # that, Cassie walked 1.2 m backwards and fell before S3's first footholds
+                self._publish_off(ctx, state, plan is not None)
                 return
             self._hold_until_plan = False  # once: a later gap in plans is the controller's
         utime = int(state.header.utime)
@@ -169,14 +173,17 @@ class OscNode(Node):
         d.task_errors = dbg.task_errors
         ctx.publish("debug", d)
 
-    def _publish_off(self, ctx: Context, state: Any) -> None:
-        """Zero torque, mode 3 (off): waiting for the MPFC's first plan."""
+    def _publish_off(self, ctx: Context, state: Any, planless: bool = False) -> None:
+        """Zero torque, mode 3 (off): waiting for the MPFC's first plan (``planless``: it
+        runs, but has no footsteps to plan yet)."""
         cmd = self._torque
         cmd.header.utime = state.header.utime
         cmd.state_packet_seq = state.packet_seq
         cmd.torque = [0.0] * int(cmd.num_motors)
         cmd.mode = OFF
-        cmd.status = self._status = "off: waiting for the MPFC's first plan (held)"
+        cmd.status = self._status = (
+            "off: the MPFC has no footstep plan yet (no footholds?); held" if planless
+            else "off: waiting for the MPFC's first plan (held)")
         ctx.publish("torque", cmd)
 
     def status(self) -> str:
