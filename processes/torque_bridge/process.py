@@ -51,6 +51,8 @@ log = logging.getLogger(__name__)
 WATCHDOG_TICK_S = 0.002
 #: a fill answers a state read undecoded only this far (us of sim time) past the last answer
 FILL_MAX_AHEAD_US = 50_000
+#: ... and one such state in this long (us of sim time) is decoded and checked all the same
+FILL_CHECK_EVERY_US = 100_000
 
 
 @functools.cache
@@ -89,6 +91,7 @@ class TorqueBridgeNode(Node):
             self.trigger_role = "torque"
             self.trigger_timeout_s = WATCHDOG_TICK_S
             self._answered_utime = -1
+            self._checked_utime = -FILL_CHECK_EVERY_US  # the newest state decoded on a fill
             if fill_hz:
                 self.off_slot_wake = {"state": float(fill_hz)}
         if answer_on == "torque":
@@ -145,8 +148,15 @@ class TorqueBridgeNode(Node):
             # was answered; anything else, and the fallback's velocities, decodes and checks
             head = self._fill_header(inbox)
             state = None
+            if head is not None and head[0] - self._checked_utime >= FILL_CHECK_EVERY_US:
+                # states read undecoded pass no edge check, whose clock (utime_step_s) then
+                # falls behind: measured, after a bridge's take-over a second of fills, then a
+                # decoded state rejected as 1.5 s off its clock, the fallback, and a fall
+                head = None
             if head is None:
                 state = inbox.latest("state")
+                if state is not None:
+                    self._checked_utime = int(state.header.utime)
                 if state is not None:
                     head = int(state.header.utime), packet_seq_of(state)
             if head is None or head[0] <= self._answered_utime:

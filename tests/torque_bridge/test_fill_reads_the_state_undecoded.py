@@ -1,6 +1,7 @@
 """A fill (a state the 1 kHz OSC skips, answered with the newest torque) reads only the
 state's utime and packet seq from its bytes: no decode, and the same packet as with one; a
-state whose utime does not follow on is decoded and checked as any input is."""
+state whose utime does not follow on is decoded and checked as any input is, and so is one
+state in every 0.1 s, which keeps the edge check's clock in step with the stream."""
 
 from __future__ import annotations
 
@@ -65,7 +66,8 @@ def test_a_fill_acks_the_new_state_without_decoding_it():
         node.tick(ctx, inbox)
         st.fresh = False  # (the runner marks a filled state answered)
         assert ctx.sent[-1].ack == k and np.allclose(ctx.sent[-1].torque, 3.0)
-        assert st.peek() is decoded_before  # read from its bytes, never decoded
+        if k > 3:  # (the first is decoded and checked: one in every 0.1 s is)
+            assert st.peek() is decoded_before  # read from its bytes, never decoded
     assert node.fills == 10 and len(ctx.sent) == 11
     # the fallback (no command for the watchdog's 10 ms) reads the newest state in full
     assert inbox.latest("state").header.utime == 6000
@@ -84,3 +86,25 @@ def test_a_state_far_ahead_of_the_last_answer_is_decoded_and_checked():
     st._on_message("CASSIE_STATE", state(1500, seq=3).encode())
     node.tick(ctx, inbox)
     assert len(ctx.sent) == 2 and ctx.sent[-1].ack == 3
+
+
+def test_a_second_of_fills_keeps_the_edge_checks_clock_in_step():
+    """A 1 kHz OSC's torques and the fills between them, with no state decoded on the way
+    (a command carries its state's ack): the one state decoded in every 0.1 s keeps
+    ``utime_step_s`` following the stream, so a state decoded after 1.5 s is admitted, not
+    rejected as off its clock (measured live before: after a bridge's take-over it was, the
+    bridge fell back to damping, and Cassie fell)."""
+    from runtime.validate import InputCheck
+
+    node, ctx, ports, inbox = _rig()
+    st = ports["state"]
+    st.check = InputCheck(robot_state_t, {"utime_step_s": [0.0, 1.0]})
+    for k in range(2, 3002):  # 1.5 s of states at 2 kHz
+        st._on_message("CASSIE_STATE", state(500 * k, seq=k & 0xFF).encode())
+        inbox._trigger = command(500 * k, [3.0] * 10, seq=k & 0xFF) if k % 2 == 0 else None
+        node.tick(ctx, inbox)
+        st.fresh = False
+    assert node.fills == 1500 and len(ctx.sent) == 3000 and st.rejected == 0
+    st._on_message("CASSIE_STATE", state(500 * 3002, seq=3002 & 0xFF).encode())
+    assert inbox.latest("state").header.utime == 500 * 3002  # admitted: in step
+    assert st.rejected == 0
