@@ -128,9 +128,12 @@ def _standby(node: object, proc: object, log: logging.Logger) -> bool:
     one, but bound to no port and subscribed to nothing, blocked on stdin until the
     supervisor writes ``go`` (its process crashed); then it takes the process's own priority
     and runs. True on ``go``; False when stdin closes (the launch is over)."""
+    from runtime.loops import settle
+
     t0 = time.monotonic()
     node.setup(_SetUpOnly())  # type: ignore[attr-defined]
     node.warm_up()  # type: ignore[attr-defined]
+    settle(proc)  # type: ignore[arg-type]
     log.info("standby: set up in %.1f s, waiting for the supervisor's go", time.monotonic() - t0)
     if aff := getattr(proc, "cpu_affinity", None):  # home to its host's CPUs (it only waits)
         try:
