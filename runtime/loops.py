@@ -42,7 +42,7 @@ from runtime.node import HEALTH_WARNING, Node, OutputGates, SlotGate, TickGuard
 from runtime.port_buffer import PortInbox
 from runtime.scheduling import apply_scheduling, lock_memory
 from runtime.timing import LoopTimer
-from runtime.udp import UdpReceiver, UdpSender
+from runtime.udp import UdpReceiver, UdpSender, loss_from_env
 from runtime.validate import input_checks
 
 log = logging.getLogger(__name__)
@@ -143,7 +143,7 @@ class LiveRunner:
             policy = (node.trigger_policy if role == node.trigger_role
                       else node.input_policy.get(role, "newest"))
             if ch.udp is not None:
-                self.ports[role] = UdpReceiver(ch.udp, policy=policy)
+                self.ports[role] = UdpReceiver(ch.udp, policy=policy, drop_ratio=loss_from_env())
             else:
                 # only the trigger wakes the loop (and every input wakes a receive thread);
                 # the others are read when it ticks. A rate-limited trigger is thinned by the

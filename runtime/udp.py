@@ -3,11 +3,33 @@
 from __future__ import annotations
 
 import errno
+import math
+import os
 import select
 import socket
 
 from runtime.errors import BusError
 from runtime.port_buffer import Policy, PortBuffer
+from runtime.udpm import attach_filter, random_drop_filter
+
+#: environment: the share of datagrams every UDP receiver of a process drops (fault tests:
+#: loss on the target PC <-> NUC link, both ways, where netfilter and netem are missing)
+LOSS_ENV = "CASSIE_UDP_LOSS"
+
+
+def loss_from_env() -> float:
+    """``$CASSIE_UDP_LOSS`` as a share in [0, 1) (0 when unset); a clear error otherwise."""
+    raw = os.environ.get(LOSS_ENV, "").strip()
+    if not raw:
+        return 0.0
+    try:
+        ratio = float(raw)
+    except ValueError:
+        ratio = math.nan
+    if not 0.0 <= ratio < 1.0:
+        raise BusError(f"{LOSS_ENV}={raw!r}: a share of datagrams to drop, in [0, 1) "
+                       "(e.g. 0.05); unset it for no loss")
+    return ratio
 
 
 class UdpReceiver(PortBuffer):
@@ -19,7 +41,10 @@ class UdpReceiver(PortBuffer):
         policy: Policy = "newest",
         capacity: int = 4096,
         recv_buf_size: int = 1 << 20,
+        drop_ratio: float = 0.0,
     ) -> None:
+        """``drop_ratio``: the kernel drops this share of the datagrams at random before this
+        socket sees them (a lossy link, for fault tests: ``LOSS_ENV``)."""
         super().__init__(policy, capacity)
         self.address = address
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -37,6 +62,8 @@ class UdpReceiver(PortBuffer):
                 f"cannot bind UDP {address[0]}:{address[1]}: {exc.strerror}{hint}"
             ) from exc
         self.sock.setblocking(False)
+        self._loss_prog = (attach_filter(self.sock, random_drop_filter(drop_ratio))
+                           if drop_ratio > 0.0 else None)
         self._buf = bytearray(65536)
         self._ready = select.poll()  # a waiting datagram, without a failed (raising) read
         self._ready.register(self.sock.fileno(), select.POLLIN)

@@ -62,6 +62,30 @@ _RET = 0x06  # BPF_RET | BPF_K
 _MOD_K = 0x94  # BPF_ALU | BPF_MOD | BPF_K
 _JGE = 0x35  # BPF_JMP | BPF_JGE | BPF_K
 _JA = 0x05  # BPF_JMP | BPF_JA
+_SKF_AD_RANDOM = 0xFFFFF000 + 56  # SKF_AD_OFF + SKF_AD_RANDOM: a random u32 in A
+
+
+def attach_filter(sock: socket.socket, prog: list[tuple[int, int, int, int]]) -> Any:
+    """Attach the classic BPF program ``prog`` ((code, jt, jf, k) each) to ``sock``; returns
+    what must be kept alive as long as it is attached."""
+    arr = (_SockFilter * len(prog))(*[_SockFilter(*ins) for ins in prog])
+    fprog = _SockFprog(len(prog), arr)
+    sock.setsockopt(socket.SOL_SOCKET, SO_ATTACH_FILTER,
+                    ctypes.string_at(ctypes.addressof(fprog), ctypes.sizeof(fprog)))
+    return arr, fprog
+
+
+def random_drop_filter(ratio: float) -> list[tuple[int, int, int, int]]:
+    """A program that drops each datagram with probability ``ratio`` (the kernel's random
+    number, SKF_AD_RANDOM): a lossy link, emulated where the socket receives, for fault tests
+    on machines without netfilter or netem."""
+    if not 0.0 <= ratio <= 1.0:
+        raise ValueError(f"a drop ratio is in [0, 1], got {ratio!r}")
+    threshold = min(round(ratio * 2**32), 2**32 - 1)
+    return [(_LD_W, 0, 0, _SKF_AD_RANDOM),
+            (_JGE, 0, 1, threshold),  # random >= threshold: keep it, else drop
+            (_RET, 0, 0, 0xFFFFFFFF),
+            (_RET, 0, 0, 0)]
 
 
 def channel_filter(
@@ -231,11 +255,7 @@ class UdpmReceiver:
             prog = channel_filter({c: self._slots.get(c) for c in self._exact})
         except ValueError:  # more channels than one program can hold: take everything
             return
-        arr = (_SockFilter * len(prog))(*[_SockFilter(*ins) for ins in prog])
-        fprog = _SockFprog(len(prog), arr)
-        self.sock.setsockopt(socket.SOL_SOCKET, SO_ATTACH_FILTER,
-                             ctypes.string_at(ctypes.addressof(fprog), ctypes.sizeof(fprog)))
-        self._prog = (arr, fprog)
+        self._prog = attach_filter(self.sock, prog)
 
     def unsubscribe(self, handler: Handler) -> None:
         for hs in self._exact.values():
