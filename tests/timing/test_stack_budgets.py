@@ -16,14 +16,21 @@ import json
 
 import pytest
 
-from runtime.config import HW_CONFIG_DIR
+from runtime.config import HW_CONFIG_DIR, load_profile
 from tests.conftest import PROFILES, cassie
 from tools.report import analyse, load_budgets
 
 pytestmark = pytest.mark.timing
 SECONDS = 30
-CANARY_OF = {"sim": "canary_laptop", "mpfc": "canary_laptop", "state_estimator": "canary_nuc",
-             "torque_bridge": "canary_nuc", "osc": "canary_nuc"}
+CANARIES = ("canary_nuc", "canary_laptop")
+
+
+def _canary_of(profile) -> dict[str, str]:  # type: ignore[no-untyped-def]
+    """Each process -> the do-nothing loop on its CPUs (the bridge, a NUC process, runs on
+    CPU 0 beside the sim in sim.yaml: its canary is the laptop's)."""
+    cpus = {c: profile.processes[c].cpu_affinity for c in CANARIES}
+    return {name: next((c for c, a in cpus.items() if a == p.cpu_affinity), "")
+            for name, p in profile.processes.items() if name not in CANARIES}
 
 
 def test_every_loop_and_hop_of_the_live_stack_meets_its_budget(
@@ -45,12 +52,13 @@ def test_every_loop_and_hop_of_the_live_stack_meets_its_budget(
 
     report = analyse(logs / "lcm.log", load_budgets(HW_CONFIG_DIR / "budgets.yaml"))
     budgets = load_budgets(HW_CONFIG_DIR / "budgets.yaml").loops
+    canary_of = _canary_of(load_profile(PROFILES / "timing_stack.yaml"))
     failures = []
     for name, row in report["loops"].items():
         proc = name.split("/")[0]
         if row["within_budget"] or proc not in budgets:
             continue
-        canary = report["loops"].get(f"{CANARY_OF.get(proc, '')}/canary", {})
+        canary = report["loops"].get(f"{canary_of.get(proc, '')}/canary", {})
         for key, limit in budgets[proc].items():
             if not key.startswith("exec_"):
                 if key == "rate_min_hz" and row["rate_hz"] < limit:
