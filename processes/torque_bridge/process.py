@@ -157,8 +157,7 @@ class TorqueBridgeNode(Node):
                 state = inbox.latest("state")
                 if state is not None:
                     self._checked_utime = int(state.header.utime)
-                if state is not None:
-                    head = int(state.header.utime), packet_seq_of(state)
+                    head = self._checked_utime, packet_seq_of(state)
             if head is None or head[0] <= self._answered_utime:
                 self.fills_skipped += 1  # a command for a later state went out first
                 return

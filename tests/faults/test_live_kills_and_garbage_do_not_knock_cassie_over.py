@@ -53,6 +53,13 @@ def _walked(status: str) -> float:
     return float(m.group(1)) if m else 0.0
 
 
+def _save(figures: dict[str, Any]) -> None:
+    """The run's figures to ``$CASSIE_FAULTS_JSON``, the mode in the file name, if it is set."""
+    if path := os.environ.get("CASSIE_FAULTS_JSON"):
+        out = Path(path)
+        out.with_stem(f"{out.stem}_{figures['mode']}").write_text(json.dumps(figures, indent=1))
+
+
 @pytest.fixture(scope="module", params=["lockstep", "realtime"])
 def run(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
         ) -> dict[str, Any]:
@@ -176,9 +183,7 @@ def run(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
         bus.close()
         os.environ.pop("CASSIE_LCM_URL", None)
     figures["summary"] = out[out.find("summary of profile"):]
-    if path := os.environ.get("CASSIE_FAULTS_JSON"):
-        out_path = Path(path)
-        out_path.with_stem(f"{out_path.stem}_{mode}").write_text(json.dumps(figures, indent=1))
+    _save(figures)
     print(json.dumps({k: v for k, v in figures.items() if k != "summary"}, indent=1))
     print(figures["summary"])
     return {"figures": figures, "out": out, "log": tmp / "logs" / "lcm.log"}
@@ -232,10 +237,7 @@ def test_no_nan_torque_reached_the_sim_and_the_garbage_was_counted(run):
     assert applied > 100
     run["figures"]["counters"] = last
     run["figures"]["command_to_watchdog_ms"] = to_safe_ms
-    if path := os.environ.get("CASSIE_FAULTS_JSON"):  # (again, with these figures)
-        out_path = Path(path)
-        out_path.with_stem(f"{out_path.stem}_{run['figures']['mode']}").write_text(
-            json.dumps(run["figures"], indent=1))
+    _save(run["figures"])  # (again, with these figures)
     if run["figures"]["mode"] == "realtime":
         # a dead OSC: the bridge's watchdog takes over 10 ms of state time after the last
         # command (CASSIE_INPUT is logged at 200 Hz: one 5 ms step of slack)
