@@ -12,6 +12,7 @@ reported, and the process runs on without it.
 from __future__ import annotations
 
 import os
+import time
 from typing import Any
 
 
@@ -100,3 +101,13 @@ def describe(pid: int) -> str:
         return f"nice {nice}" if nice else "normal"
     except OSError:
         return "?"
+
+
+def process_cpu_s(pid: int) -> float:
+    """CPU seconds ``pid``'s whole thread group has run, to the nanosecond (the kernel's
+    per-process CPU clock, ``CPUCLOCK_SCHED``), ended threads included.
+
+    psutil's figures come in 10 ms clock ticks: over a one-second sample a loop that uses 1 %
+    of a core reads 0 % or 2 %. This clock has no such steps. Raises ``OSError`` once the
+    process is gone."""
+    return time.clock_gettime((~pid << 3) | 2)  # MAKE_PROCESS_CPUCLOCK(pid, CPUCLOCK_SCHED)

@@ -50,7 +50,7 @@ from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
 from runtime.pairing import TOKEN_ENV
-from runtime.scheduling import describe, pin_to_supervisor_host
+from runtime.scheduling import describe, pin_to_supervisor_host, process_cpu_s
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 FAILED_STATES = ("failed", "crash_loop")
@@ -104,6 +104,28 @@ def _stop_group(popen: subprocess.Popen[bytes],
     return ignored
 
 
+class CpuShare:
+    """A process tree's share of a core since the previous call, from the kernel's
+    nanosecond CPU clocks (:func:`process_cpu_s`): each pid counts what it ran in between, a
+    pid first seen counts from then on, a pid gone since counts nothing."""
+
+    def __init__(self) -> None:
+        self._cpu: dict[int, float] = {}
+        self._wall = time.monotonic()
+
+    def percent(self, pids: list[int]) -> float:
+        """Percent of one core the ``pids`` used together since the previous call."""
+        now, ran, seen = time.monotonic(), 0.0, {}
+        for pid in pids:
+            try:
+                seen[pid] = cpu = process_cpu_s(pid)
+            except OSError:
+                continue
+            ran += cpu - self._cpu.get(pid, cpu)
+        elapsed, self._wall, self._cpu = now - self._wall, now, seen
+        return 100.0 * ran / elapsed if elapsed > 0 else 0.0
+
+
 @dataclass
 class Child:
     """The supervisor's record of one process."""
@@ -144,28 +166,18 @@ class Child:
     standby_pipe: int = -1  # where the spare says it is set up (non-blocking read end)
     standby_ready: bool = False
     takeovers: int = 0  # crashes answered by the standby
-    _kids: dict[int, psutil.Process] = field(default_factory=dict)
+    _share: CpuShare = field(default_factory=CpuShare)
 
     @property
     def pid(self) -> int:
         return self.popen.pid if self.popen is not None else 0
 
     def kids(self, ps: psutil.Process) -> list[psutil.Process]:
-        """The process's live descendants, each kept (psutil needs the same object between
-        two cpu_percent calls)."""
+        """The process's live descendants (a depth renderer, a viewer it started)."""
         try:
-            now = {k.pid: k for k in ps.children(recursive=True)}
+            return ps.children(recursive=True)
         except psutil.Error:
             return []
-        for pid, k in now.items():
-            if pid not in self._kids:
-                self._kids[pid] = k
-                try:
-                    k.cpu_percent(None)
-                except psutil.Error:
-                    pass
-        self._kids = {pid: self._kids[pid] for pid in now}
-        return list(self._kids.values())
 
     def alive(self) -> bool:
         return self.popen is not None and self.popen.poll() is None
@@ -233,7 +245,7 @@ class Supervisor:
         self._pidfds: dict[int, int] = {}
         self._status_seq = 0
         self._me = psutil.Process()
-        self._me.cpu_percent(None)
+        self._my_share = CpuShare()
         self.cpu_percent = 0.0
         self._last_sample = 0.0
         self.bus.subscribe_raw(profile.timing_channel, self._on_timing)
@@ -439,7 +451,6 @@ class Supervisor:
         child.detail = f"{how}; its standby took over"
         try:
             child.ps = psutil.Process(sb.pid)
-            child.ps.cpu_percent(None)
         except psutil.Error:
             child.ps = None
         self._next_standby_at = max(self._next_standby_at, now + STANDBY_SPACING_S)
@@ -480,7 +491,6 @@ class Supervisor:
         child.detail = ""
         try:
             child.ps = psutil.Process(child.popen.pid)
-            child.ps.cpu_percent(None)
         except psutil.Error:
             child.ps = None
         if child.command is not None:  # a helper program (`cassie run` applies its own)
@@ -711,28 +721,29 @@ class Supervisor:
         child.detail = f"{how}; restart in {child.backoff_s:.1f} s"
 
     def _sample_resources(self, now: float) -> None:
-        """CPU share (psutil, over the time since the previous sample: about a second, so the
-        figure is a real average, not a 1 ms glimpse), CPU seconds, memory, scheduling."""
+        """CPU share (nanosecond CPU clocks over the time since the previous sample: about a
+        second, so the figure is a real average, not a 1 ms glimpse), CPU seconds, memory,
+        scheduling."""
         self._last_sample = now
-        self.cpu_percent = self._me.cpu_percent(None)
+        self.cpu_percent = self._my_share.percent([os.getpid()])
         for child in self.children.values():
             if child.ps is None:
                 child.cpu_percent = child.rss_mb = 0.0
                 continue
             try:
                 with child.ps.oneshot():
-                    child.cpu_percent = child.ps.cpu_percent(None)
                     t = child.ps.cpu_times()
                     child.rss_mb = child.ps.memory_info().rss / 2**20
                 # the whole process tree: a depth renderer or a viewer the process started
                 cpu_s = t.user + t.system + t.children_user + t.children_system
-                for kid in child.kids(child.ps):
+                kids = child.kids(child.ps)
+                for kid in kids:
                     try:
                         kt = kid.cpu_times()
                         cpu_s += kt.user + kt.system
-                        child.cpu_percent += kid.cpu_percent(None)
                     except psutil.Error:
                         pass
+                child.cpu_percent = child._share.percent([child.ps.pid] + [k.pid for k in kids])
                 child.cpu_s = cpu_s
                 child.priority = describe(child.pid)
                 aff = child.ps.cpu_affinity()
