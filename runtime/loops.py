@@ -410,11 +410,17 @@ class LiveRunner:
         assert role is not None
         port = self.ports[role]
         deadline_ns = int((self.node.deadline_s or 0.0) * self.wall_per_sim * 1e9)
-        timeout_s = getattr(self.node, "trigger_timeout_s", None)
         last_trigger_ns = time.monotonic_ns()
-        poll_s = 0.05 if timeout_s is None else min(0.05, timeout_s)
         threaded = self.node.receive_thread
         while not self.stop_event.is_set():
+            # read before each wait: a node may adapt it (the sim's ResendTimer); wait no
+            # longer than what is left of it, so a wake on something else never stretches it
+            timeout_s = getattr(self.node, "trigger_timeout_s", None)
+            if timeout_s is None:
+                poll_s = 0.05
+            else:
+                left_s = timeout_s - (time.monotonic_ns() - last_trigger_ns) * 1e-9
+                poll_s = min(0.05, max(left_s, 0.0))
             if threaded:  # the receive thread polls; wait for it to say the trigger is fresh
                 self._arrived.wait(poll_s)
                 self._arrived.clear()

@@ -39,6 +39,7 @@ from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
 from runtime.pairing import link_token
+from runtime.udp import ResendTimer
 from sim import terrain as terrain_mod
 from sim.camera import (
     AsyncDepthRenderer,
@@ -76,7 +77,8 @@ class SimSettings:
     camera: CameraConfig = field(default_factory=CameraConfig)
     camera_enabled: bool = True
     camera_render: CameraRender = "auto"  # auto: a child process in real time, inline in lockstep
-    lockstep_timeout_s: float = 0.01  # gains/sim.yaml lockstep.timeout_s
+    lockstep_timeout_s: float = 0.01  # gains/sim.yaml lockstep.timeout_s: the longest wait
+    lockstep_min_timeout_s: float = 0.001  # lockstep.min_timeout_s: the shortest (ResendTimer)
     #: real time: after a stall (this VM's, or a busy core) step the physics through up to this
     #: much missed sim time in one tick, so sim time keeps up with the wall clock as a real
     #: robot's would; a longer stall is lost (counted) and the real-time factor shows it
@@ -202,9 +204,11 @@ def load_gains(path: str | Path | None) -> SimSettings:
     )
     cam, cam_on, render = _camera(file, _mapping(file, "camera", doc.get("camera")))
     lock = _mapping(file, "lockstep", doc.get("lockstep"))
-    _check_keys(file, "lockstep.", lock, {"timeout_s", "steps_per_command"})
+    _check_keys(file, "lockstep.", lock, {"timeout_s", "min_timeout_s", "steps_per_command"})
     rt = _mapping(file, "realtime", doc.get("realtime"))
     _check_keys(file, "realtime.", rt, {"catch_up_ms"})
+    timeout_s = _num(file, "lockstep.timeout_s", lock.get("timeout_s", 0.01), lo=1e-3,
+                     hi=3600.0)
     gil = doc.get("gil_switch_interval_s", 2e-4)
     if gil is not None:
         gil = _num(file, "gil_switch_interval_s", gil, lo=1e-6, hi=0.1)
@@ -212,8 +216,10 @@ def load_gains(path: str | Path | None) -> SimSettings:
         sim=sim, camera=cam, camera_enabled=cam_on, camera_render=render,
         catch_up_s=_num(file, "realtime.catch_up_ms", rt.get("catch_up_ms", 2.0), lo=0.0,
                         hi=100.0) / 1000.0,
-        lockstep_timeout_s=_num(file, "lockstep.timeout_s", lock.get("timeout_s", 0.01),
-                                lo=1e-3, hi=3600.0),
+        lockstep_timeout_s=timeout_s,
+        lockstep_min_timeout_s=_num(file, "lockstep.min_timeout_s",
+                                    lock.get("min_timeout_s", min(0.001, timeout_s)),
+                                    lo=1e-4, hi=timeout_s),
         steps_per_command=int(_num(file, "lockstep.steps_per_command",
                                    lock.get("steps_per_command", 1), lo=1, hi=100, integer=True)),
         gil_switch_interval_s=gil,
@@ -327,7 +333,11 @@ class SimNode(Node):
         if drive == "command":
             self.trigger_role = "command"
             self.trigger_policy = "newest"
-            self.trigger_timeout_s: float | None = settings.lockstep_timeout_s
+            #: the resend timeout follows the measured round trips (ResendTimer): the runner
+            #: reads ``trigger_timeout_s`` before each wait
+            self.resend = ResendTimer(settings.lockstep_min_timeout_s,
+                                      settings.lockstep_timeout_s)
+            self.trigger_timeout_s: float | None = self.resend.timeout_s
         else:
             self.trigger_role = None
             self.trigger_timeout_s = None
@@ -398,6 +408,8 @@ class SimNode(Node):
             sys.setswitchinterval(self.settings.gil_switch_interval_s)
         # the first state goes out before any command: in lockstep it is what gets answered
         ctx.publish("robot_output", bytes(self.tpc.encode_state()))
+        if self.trigger_role is not None:
+            self.resend.sent(perf_counter())
         self._publish_extras(ctx, self.core.utime)
 
     def tick(self, ctx: Context, inbox: Inbox) -> None:
@@ -426,7 +438,12 @@ class SimNode(Node):
             t = core.d.time
             utime = round(t * 1e6)  # core.utime
         else:
-            out = tpc.lockstep_cycle(inbox.trigger())
+            data = inbox.trigger()
+            out = tpc.lockstep_cycle(data)
+            if data is None:
+                self.resend.expired()  # the same state goes again: wait longer for it
+            elif out is not None:
+                self.resend.answered(t0)
             # driven by raw command bytes, which carry no sim time: the sim is the clock, so
             # its outputs (and their decimation) run on physics time
             t = core.d.time
@@ -435,6 +452,10 @@ class SimNode(Node):
             # the packet's own buffer (``out`` views it): the live runner sends it at once and
             # the harness copies it, so no copy is made here
             ctx.publish("robot_output", tpc.out.buffer)
+            if self.trigger_role is not None:
+                if data is not None:  # a new state, not a resend
+                    self.resend.sent(perf_counter())
+                self.trigger_timeout_s = self.resend.timeout_s
         core.prepare()  # the next step's first half, once the state is on its way
         self._publish_extras(ctx, utime)
         if utime >= self._next_judge_us:
@@ -546,6 +567,12 @@ class SimNode(Node):
             "commands_malformed": tpc.link.malformed,
             "commands_foreign": tpc.link.foreign,  # another launch's pairing token
             "zero_torque_steps": c.zero_torque_steps,
+            # lockstep: the chain's smoothed round trip and the resend timeout it sets (0 when
+            # the sim runs on its own clock)
+            "round_trip_ms": (1e3 * self.resend.srtt if self.trigger_role is not None
+                              and self.resend.samples else 0.0),
+            "resend_timeout_ms": (1e3 * self.resend.timeout_s if self.trigger_role is not None
+                                  else 0.0),
             "rtf": tpc.stats.rtf if self.wall_clock else 0.0,
             "overruns": tpc.stats.overruns,
             "catch_up_steps": self.catch_up_steps,
