@@ -35,8 +35,9 @@ def checkpoint_path(process: str) -> Path | None:
 
 
 def remove_checkpoints(token: int | str) -> None:
-    """Delete a launch's state files (the supervisor, at shutdown)."""
-    for p in SHM_DIR.glob(f"cassie-{token}-*.state"):
+    """Delete a launch's files in shared memory (the supervisor, at shutdown): its state
+    checkpoints and its succession locks (``runtime.succession``)."""
+    for p in SHM_DIR.glob(f"cassie-{token}-*"):
         try:
             p.unlink()
         except OSError:

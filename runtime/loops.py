@@ -41,6 +41,7 @@ from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.node import HEALTH_WARNING, Node, OutputGates, SlotGate, TickGuard
 from runtime.port_buffer import PortInbox
 from runtime.scheduling import apply_scheduling, lock_memory
+from runtime.succession import Succession
 from runtime.timing import LoopTimer
 from runtime.udp import UdpReceiver, UdpSender, loss_from_env
 from runtime.validate import input_checks
@@ -268,9 +269,17 @@ class LiveRunner:
         self.bus.publish(self.profile.timing_channel, msg)
 
     # -- the loops -------------------------------------------------------------------------
-    def run(self, duration_s: float | None = None, set_up: bool = False) -> int:
+    def run(self, duration_s: float | None = None, set_up: bool = False,
+            succession: Succession | None = None) -> int:
         """Run until SIGINT/SIGTERM, ``stop()`` or ``duration_s``; returns an exit code.
-        ``set_up``: the node's ``setup`` and ``warm_up`` were done already (a standby)."""
+        ``set_up``: the node's ``setup`` and ``warm_up`` were done already (a standby);
+        ``succession``: the process's lock, taken already (a standby that took over)."""
+        if succession is None:  # held for the whole run: its standby wakes when it ends
+            succession = Succession.for_process(self.proc.name)
+            if succession is not None and not succession.hold():
+                log.error("%s: another copy of it holds %s: not starting a second one",
+                          self.proc.name, succession.path)
+                return 3
         self._install_signals()
         _set_timer_slack_ns(1000)
         self._parent = os.getppid()  # (a successor exists only while this parent lives)
@@ -312,6 +321,8 @@ class LiveRunner:
                 if isinstance(p, UdpReceiver):
                     p.close()
             gc.enable()
+        if succession is not None:
+            succession.release()  # an ordered end (not an exception): no take-over
         return 0
 
     def _carry_on(self) -> None:

@@ -21,7 +21,7 @@ def apply_scheduling(proc: Any, realtime: bool = False) -> list[str]:
     or with ``realtime`` its ``rt_priority``; returns one line per setting saying what
     happened."""
     if realtime:
-        return _rt_priority(getattr(proc, "rt_priority", None))
+        return rt_priority(getattr(proc, "rt_priority", None))
     notes = []
     aff = getattr(proc, "cpu_affinity", None)
     if aff:
@@ -71,7 +71,9 @@ def pin_to_supervisor_host(profile: Any) -> tuple[int, ...] | None:
     return cpus
 
 
-def _rt_priority(prio: int | None) -> list[str]:
+def rt_priority(prio: int | None) -> list[str]:
+    """SCHED_FIFO at ``prio`` for the calling thread (and the threads it starts); one line
+    saying what happened."""
     notes = []
     if prio is not None:
         try:

@@ -51,6 +51,7 @@ from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
 from runtime.pairing import TOKEN_ENV
 from runtime.scheduling import describe, pin_to_supervisor_host, process_cpu_s
+from runtime.succession import create_lock, lock_path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 FAILED_STATES = ("failed", "crash_loop")
@@ -425,6 +426,21 @@ class Supervisor:
                 self._next_standby_at = now + STANDBY_SPACING_S
                 return
 
+    def _make_succession_locks(self) -> None:
+        """One robust mutex per process with a standby (``runtime.succession``): the running
+        copy holds it, the standby wakes the moment that copy dies, ~30-50 ms before its exit
+        shows here."""
+        for name, c in self.children.items():
+            if c.proc.restart.standby and c.command is None:
+                path = lock_path(name, self.link_token)
+                if path is None:
+                    return
+                try:
+                    create_lock(path)
+                except OSError as exc:
+                    self.out.write(f"{name}: no succession lock ({exc}): its standby learns "
+                                   "of a crash only from the supervisor\n")
+
     def _take_over(self, child: Child, now: float, how: str) -> bool:
         """The crashed ``child``'s standby becomes it (``go`` on its stdin); False when there
         is none alive."""
@@ -509,7 +525,9 @@ class Supervisor:
             pass
 
     def _stop_child(self, child: Child) -> None:
-        """SIGINT, then SIGTERM, then SIGKILL to the child's process group."""
+        """SIGINT, then SIGTERM, then SIGKILL to the child's process group; its standby
+        first, which would otherwise take over from a copy stopped on purpose."""
+        self._end_standby(child)
         if child.popen is None:
             return
         child.state = "stopping"
@@ -533,6 +551,7 @@ class Supervisor:
             if not self._precheck():
                 self.state = "stopped"
                 return 2
+            self._make_succession_locks()
             ok = self._start_all()
             self.state = "running" if ok else "stopping"
             # --duration counts the whole stack running: a fresh clone's start-up (a minute or
@@ -696,6 +715,7 @@ class Supervisor:
             child.crashes += 1  # restarted or not, the run is no longer a clean one
             child.last_crash = how
         if policy.policy == "never" or (policy.policy == "on-failure" and code == 0):
+            self._end_standby(child)  # (it may have taken over: it must not run untracked)
             child.state = "exited" if code == 0 else "failed"
             child.ever_failed = child.ever_failed or code != 0
             child.detail = how
@@ -703,6 +723,7 @@ class Supervisor:
         while child.restart_times and now - child.restart_times[0] > policy.window_s:
             child.restart_times.popleft()
         if len(child.restart_times) >= policy.max_restarts:
+            self._end_standby(child)
             child.state = "crash_loop"
             child.ever_failed = True
             child.detail = (

@@ -61,8 +61,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if hasattr(module, "make_node"):
         node = module.make_node(proc, profile)
         set_up = False
+        succession = None
         if args.standby:
-            if not _standby(node, proc, log):
+            took_over, succession = _standby(node, proc, log)
+            if not took_over:
                 return 0
             set_up = True
         domains = sorted({profile.channel_domains.get(c.name, "network")
@@ -77,8 +79,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
         runner = LiveRunner(node, proc, profile)
         if prof_dir := os.environ.get(CPROFILE_ENV):
-            return _profiled(runner, Path(prof_dir) / f"{proc.name}.prof", args.duration, set_up)
-        return runner.run(duration_s=args.duration, set_up=set_up)
+            return _profiled(runner, Path(prof_dir) / f"{proc.name}.prof", args.duration, set_up,
+                             succession)
+        return runner.run(duration_s=args.duration, set_up=set_up, succession=succession)
     if hasattr(module, "main"):
         _started(proc, profile)
         return int(module.main(proc, profile) or 0)
@@ -96,14 +99,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
 CPROFILE_ENV = "CASSIE_CPROFILE_DIR"
 
 
-def _profiled(runner: Any, out: Path, duration: float | None, set_up: bool) -> int:
+def _profiled(runner: Any, out: Path, duration: float | None, set_up: bool,
+              succession: Any = None) -> int:
     """``runner.run`` under cProfile, the statistics written to ``out`` (pstats format)."""
     import cProfile
 
     prof = cProfile.Profile()
     prof.enable()
     try:
-        return runner.run(duration_s=duration, set_up=set_up)
+        return runner.run(duration_s=duration, set_up=set_up, succession=succession)
     finally:
         prof.disable()
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -123,18 +127,24 @@ class _SetUpOnly:
         return False
 
 
-def _standby(node: object, proc: object, log: logging.Logger) -> bool:
+def _standby(node: object, proc: Any, log: logging.Logger) -> tuple[bool, Any]:
     """A spare copy of a process (``restart.standby``): set up and warmed up like the real
-    one, but bound to no port and subscribed to nothing, blocked on stdin until the
-    supervisor writes ``go`` (its process crashed); then it takes the process's own priority
-    and runs. True on ``go``; False when stdin closes (the launch is over)."""
+    one, but bound to no port and subscribed to nothing, until its process dies. It learns
+    that from the process's succession lock (``runtime.succession``: the moment the kernel
+    starts to end the process) or from the supervisor's ``go`` on stdin, whichever comes
+    first; then it takes the process's own priority and runs. Returns (take over?, the
+    succession lock it holds, if any); (False, None) when stdin closes (the launch is over)."""
+    import select
+
     from runtime.loops import settle
+    from runtime.scheduling import apply_scheduling, rt_priority
+    from runtime.succession import Succession
 
     t0 = time.monotonic()
     node.setup(_SetUpOnly())  # type: ignore[attr-defined]
     node.warm_up()  # type: ignore[attr-defined]
-    settle(proc)  # type: ignore[arg-type]
-    log.info("standby: set up in %.1f s, waiting for the supervisor's go", time.monotonic() - t0)
+    settle(proc)
+    log.info("standby: set up in %.1f s, waiting for its process to end", time.monotonic() - t0)
     if aff := getattr(proc, "cpu_affinity", None):  # home to its host's CPUs (it only waits)
         try:
             os.sched_setaffinity(0, aff)
@@ -142,18 +152,61 @@ def _standby(node: object, proc: object, log: logging.Logger) -> bool:
             log.warning("standby: cpu affinity %s: failed (%s)", list(aff), exc.strerror)
     from runtime.supervisor import STANDBY_FD_ENV
 
+    succession = Succession.for_process(proc.name)
+    wake_r = -1
+    if succession is not None and (prio := getattr(proc, "rt_priority", None)) is not None:
+        # wait one step above the process's own real-time priority (waiting costs no CPU):
+        # a killed process's kernel teardown runs at its priority on its CPU, 10-30 ms for
+        # ~550 MB locked, and at nice 19 the standby woke only after it (measured: 14 ms from
+        # the kill to the first torque, past the target PC's 10 ms watchdog)
+        for note in rt_priority(min(int(prio) + 1, 99)):
+            if "failed" in note:
+                log.warning("standby: %s", note)
+    if succession is not None:
+        wake_r, wake_w = os.pipe()
+        succession.watch(wake_w)
     if (fd := os.environ.get(STANDBY_FD_ENV)) is not None:
         try:
             os.write(int(fd), b"ready\n")
             os.close(int(fd))
         except (OSError, ValueError):
             pass  # no supervisor listening: it learns nothing, the standby still waits
-    line = sys.stdin.readline()
-    if line.strip() != "go":
-        return False
+    how = ""
+    while not how:
+        waits = [sys.stdin] + ([wake_r] if wake_r >= 0 else [])
+        ready, _, _ = select.select(waits, [], [])
+        if wake_r in ready:
+            os.read(wake_r, 1)
+            assert succession is not None
+            if succession.crashed.is_set():
+                how = "its process died (succession lock), before the supervisor's go"
+            else:  # it ended in order: no take-over unless the supervisor says go
+                os.close(wake_r)
+                wake_r, succession = -1, None
+        if sys.stdin in ready:
+            line = sys.stdin.readline()
+            if line.strip() != "go":
+                return False, None
+            how = "the supervisor's go"
+    # real-time priority at once: what is left before the first packet must not wait behind
+    # the host's other loops (the runner applies it again, with the rest of its scheduling)
     os.setpriority(os.PRIO_PROCESS, 0, getattr(proc, "nice", None) or 0)
-    log.info("standby: taking over")
-    return True
+    for note in apply_scheduling(proc, realtime=True):
+        if "failed" in note:
+            log.warning(note)
+    log.info("standby: taking over on %s", how)
+    if succession is not None and not succession.crashed.is_set():
+        # go before the lock came: the kernel releases it before the exit shows, so it is due
+        for _ in range(100):
+            if succession.crashed.is_set() or succession.ended.is_set():
+                break
+            time.sleep(0.01)
+        if succession.ended.is_set():
+            succession = None  # given back in order: the runner takes it itself
+        elif not succession.crashed.is_set():
+            log.warning("standby: told to go while %s is still held: its lock will be this "
+                        "copy's once the other copy ends", succession.path)
+    return True, succession
 
 
 def _started(proc: object, profile: object) -> None:
