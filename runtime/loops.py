@@ -104,6 +104,10 @@ def _utime(msg: Any) -> int:
     return int(header.utime) if header is not None else 0
 
 
+#: how long a UDP input port may stay taken before the runner gives up binding it
+BIND_WAIT_S = 1.0
+
+
 class LiveRunner:
     """Wires a Node to real LCM channels and UDP sockets and runs its loop until stopped."""
 
@@ -144,7 +148,10 @@ class LiveRunner:
             policy = (node.trigger_policy if role == node.trigger_role
                       else node.input_policy.get(role, "newest"))
             if ch.udp is not None:
-                self.ports[role] = UdpReceiver(ch.udp, policy=policy, drop_ratio=loss_from_env())
+                # (a standby taking over binds while its killed predecessor still holds the
+                # port: the kernel frees it ~10-30 ms into the teardown)
+                self.ports[role] = UdpReceiver(ch.udp, policy=policy, drop_ratio=loss_from_env(),
+                                               bind_wait_s=BIND_WAIT_S)
             else:
                 # only the trigger wakes the loop (and every input wakes a receive thread);
                 # the others are read when it ticks. A rate-limited trigger is thinned by the

@@ -7,6 +7,7 @@ import math
 import os
 import select
 import socket
+import time
 
 from runtime.errors import BusError
 from runtime.port_buffer import Policy, PortBuffer
@@ -42,15 +43,19 @@ class UdpReceiver(PortBuffer):
         capacity: int = 4096,
         recv_buf_size: int = 1 << 20,
         drop_ratio: float = 0.0,
+        bind_wait_s: float = 0.0,
     ) -> None:
         """``drop_ratio``: the kernel drops this share of the datagrams at random before this
-        socket sees them (a lossy link, for fault tests: ``LOSS_ENV``)."""
+        socket sees them (a lossy link, for fault tests: ``LOSS_ENV``). ``bind_wait_s``: while
+        the port is taken, try again for this long (a successor that starts as its crashed
+        predecessor is still being torn down: the kernel closes a killed process's sockets
+        only after it has unmapped its memory, ~10-30 ms)."""
         super().__init__(policy, capacity)
         self.address = address
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buf_size)
         try:
-            self.sock.bind(address)
+            _bind(self.sock, address, bind_wait_s)
         except OSError as exc:
             self.sock.close()
             hint = (
@@ -89,6 +94,19 @@ class UdpReceiver(PortBuffer):
 
     def close(self) -> None:
         self.sock.close()
+
+
+def _bind(sock: socket.socket, address: tuple[str, int], wait_s: float) -> None:
+    """``sock.bind(address)``, retried every 0.5 ms for ``wait_s`` while the port is taken."""
+    end = time.monotonic() + wait_s
+    while True:
+        try:
+            sock.bind(address)
+            return
+        except OSError as exc:
+            if exc.errno != errno.EADDRINUSE or time.monotonic() >= end:
+                raise
+        time.sleep(0.0005)
 
 
 class UdpSender:
