@@ -20,11 +20,11 @@ class loop_timing_t(object):
     sign that it is up; an idle loop keeps sending empty windows as a heartbeat.
     """
 
-    __slots__ = ["header", "process", "loop", "kind", "window_s", "rate_hz", "target_rate_hz", "deadline_ms", "ticks", "ticks_total", "deadline_misses", "deadline_misses_total", "overruns_total", "stale_skipped_total", "decode_errors_total", "period_mean_ms", "period_max_ms", "exec_p50_ms", "exec_p99_ms", "exec_max_ms", "lateness_p50_ms", "lateness_p99_ms", "lateness_max_ms", "input_age_p50_ms", "input_age_p99_ms", "input_age_max_ms", "cpu_p50_ms", "cpu_p99_ms", "cpu_max_ms", "process_cpu_s", "process_cpu_share", "rate_skipped_total", "status", "health", "num_counters", "counter_names", "counter_values", "num_samples", "exec_ms", "lateness_ms", "input_age_ms", "cpu_ms"]
+    __slots__ = ["header", "process", "loop", "kind", "window_s", "rate_hz", "target_rate_hz", "deadline_ms", "ticks", "ticks_total", "deadline_misses", "deadline_misses_total", "overruns_total", "stale_skipped_total", "decode_errors_total", "period_mean_ms", "period_max_ms", "exec_p50_ms", "exec_p99_ms", "exec_max_ms", "lateness_p50_ms", "lateness_p99_ms", "lateness_max_ms", "input_age_p50_ms", "input_age_p99_ms", "input_age_max_ms", "cpu_p50_ms", "cpu_p99_ms", "cpu_max_ms", "process_cpu_s", "process_cpu_share", "rate_skipped_total", "status", "health", "num_counters", "counter_names", "counter_values", "num_samples", "exec_ms", "lateness_ms", "input_age_ms", "cpu_ms", "auth_len", "auth"]
 
-    __typenames__ = ["lcmtypes.header_t", "string", "string", "string", "double", "double", "double", "double", "int32_t", "int64_t", "int32_t", "int64_t", "int64_t", "int64_t", "int64_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "int64_t", "string", "int8_t", "int32_t", "string", "double", "int32_t", "float", "float", "float", "float"]
+    __typenames__ = ["lcmtypes.header_t", "string", "string", "string", "double", "double", "double", "double", "int32_t", "int64_t", "int32_t", "int64_t", "int64_t", "int64_t", "int64_t", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "double", "int64_t", "string", "int8_t", "int32_t", "string", "double", "int32_t", "float", "float", "float", "float", "int8_t", "byte"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, ["num_counters"], ["num_counters"], None, ["num_samples"], ["num_samples"], ["num_samples"], ["num_samples"]]
+    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, ["num_counters"], ["num_counters"], None, ["num_samples"], ["num_samples"], ["num_samples"], ["num_samples"], None, ["auth_len"]]
 
     def __init__(self):
         self.header = lcmtypes.header_t()
@@ -183,6 +183,16 @@ class loop_timing_t(object):
         """ LCM Type: float[num_samples] """
         self.cpu_ms = []
         """ LCM Type: float[num_samples] """
+        self.auth_len = 0
+        """
+        HMAC-SHA256 (its first 16 bytes) of the encoded message before it, keyed with the
+        launch's timing key (runtime.pairing.sign_timing): the supervisor takes a process's
+        TIMING only with it. Empty (auth_len 0) outside a supervised launch.
+        LCM Type: int8_t
+        """
+
+        self.auth = b""
+        """ LCM Type: byte[auth_len] """
 
     def encode(self):
         buf = BytesIO()
@@ -222,6 +232,8 @@ class loop_timing_t(object):
         buf.write(struct.pack('>%df' % self.num_samples, *self.lateness_ms[:self.num_samples]))
         buf.write(struct.pack('>%df' % self.num_samples, *self.input_age_ms[:self.num_samples]))
         buf.write(struct.pack('>%df' % self.num_samples, *self.cpu_ms[:self.num_samples]))
+        buf.write(struct.pack(">b", self.auth_len))
+        buf.write(bytearray(self.auth[:self.auth_len]))
 
     @staticmethod
     def decode(data: bytes):
@@ -257,13 +269,15 @@ class loop_timing_t(object):
         self.lateness_ms = struct.unpack('>%df' % self.num_samples, buf.read(self.num_samples * 4))
         self.input_age_ms = struct.unpack('>%df' % self.num_samples, buf.read(self.num_samples * 4))
         self.cpu_ms = struct.unpack('>%df' % self.num_samples, buf.read(self.num_samples * 4))
+        self.auth_len = struct.unpack(">b", buf.read(1))[0]
+        self.auth = buf.read(self.auth_len)
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if loop_timing_t in parents: return 0
         newparents = parents + [loop_timing_t]
-        tmphash = (0x3df9ea3ad4844f8b+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
+        tmphash = (0x736daed8a2b2d0d6+ lcmtypes.header_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -39,6 +39,7 @@ from runtime.bus import Bus, Subscription
 from runtime.checkpoint import StateCheckpoint, checkpoint_path
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.node import HEALTH_WARNING, Node, OutputGates, SlotGate, TickGuard
+from runtime.pairing import sign_timing, timing_key
 from runtime.port_buffer import PortInbox
 from runtime.scheduling import apply_scheduling, lock_memory
 from runtime.succession import Succession
@@ -108,6 +109,16 @@ def _utime(msg: Any) -> int:
 BIND_WAIT_S = 1.0
 
 
+def publish_timing(bus: Bus, channel: str, msg: Any, key: bytes | None) -> None:
+    """A TIMING message, signed with the launch's timing key when there is one (the
+    supervisor takes no other: ``runtime.pairing``)."""
+    if key is None:
+        bus.publish(channel, msg)
+        return
+    bus.stamp(channel, msg)
+    bus.publish(channel, sign_timing(msg, key))
+
+
 class LiveRunner:
     """Wires a Node to real LCM channels and UDP sockets and runs its loop until stopped."""
 
@@ -122,6 +133,7 @@ class LiveRunner:
         self.proc = proc
         self.profile = profile
         self.bus = bus or Bus.for_profile(profile, source=proc.name)
+        self._timing_key = timing_key()  # signs its TIMING (None outside a launch)
         self.stop_event = threading.Event()
         if node.period_s is None and node.trigger_role is None and proc.rate_hz:
             node.period_s = 1.0 / proc.rate_hz
@@ -273,7 +285,7 @@ class LiveRunner:
             status += f" | {rejected} inputs rejected, last {last}"
         msg = self.timer.report(now_ns, status, health, counters)
         msg.header.source = self.proc.name
-        self.bus.publish(self.profile.timing_channel, msg)
+        publish_timing(self.bus, self.profile.timing_channel, msg, self._timing_key)
 
     # -- the loops -------------------------------------------------------------------------
     def run(self, duration_s: float | None = None, set_up: bool = False,

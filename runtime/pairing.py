@@ -1,14 +1,26 @@
-"""The sim <-> bridge pairing token: which bridge the target PC takes torques from.
+"""Who belongs to a launch: the sim <-> bridge pairing token (which bridge the target PC takes
+torques from) and the timing key (whose TIMING the supervisor takes).
 
 The supervisor draws a token per launch and gives it to every process it starts in
 ``$CASSIE_LINK_TOKEN``; the torque bridge stamps it on each torque packet and the sim drops a
 packet with another (``runtime.cassie_packets``, docs/udp_protocol.md). Light on purpose: the
 supervisor imports it without numba or numpy.
+
+The token travels in every torque packet, so anyone on the wire can read it; it keeps two
+stacks apart, not an intruder out. The TIMING messages that tell the supervisor a process is
+alive, well or faulty are signed instead: the supervisor draws a secret key per launch, hands
+it to the processes it starts in ``$CASSIE_TIMING_KEY`` (never on the bus), and each TIMING
+ends with an HMAC-SHA256 tag of the message before it (``loop_timing_t.auth``). A message that
+names a real process and source but lacks the tag is refused and counted: before, one such
+spoofed message could mark a process ready, healthy or faulty.
 """
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import os
+from typing import Any
 
 from runtime.errors import ConfigError
 
@@ -38,3 +50,42 @@ def link_token() -> int:
 def token_bytes(token: int) -> bytes:
     """The 4 bytes a torque packet carries at its token's offset."""
     return int(token).to_bytes(4, "little")
+
+
+#: the environment variable holding the launch's timing key (hex; the supervisor's secret)
+TIMING_KEY_ENV = "CASSIE_TIMING_KEY"
+#: the tag's length: the last bytes of an encoded loop_timing_t (its ``auth`` field)
+TAG_BYTES = 16
+
+
+def timing_key() -> bytes | None:
+    """This launch's timing key (``$CASSIE_TIMING_KEY``), None outside a supervised launch."""
+    raw = os.environ.get(TIMING_KEY_ENV)
+    if not raw:
+        return None
+    try:
+        key = bytes.fromhex(raw)
+    except ValueError:
+        key = b""
+    if len(key) < 16:
+        raise ConfigError("the environment", TIMING_KEY_ENV, "is not a timing key",
+                          "32 or more hex digits, or unset (the supervisor sets one per launch)")
+    return key
+
+
+def _tag(key: bytes, data: bytes | bytearray | memoryview) -> bytes:
+    return hmac.digest(key, memoryview(data)[:-TAG_BYTES], hashlib.sha256)[:TAG_BYTES]
+
+
+def sign_timing(msg: Any, key: bytes) -> bytes:
+    """A loop_timing_t encoded with its ``auth``: the tag of ``key`` over the bytes before it
+    (the message is encoded with a zeroed tag of the right length, then the tag written in)."""
+    msg.auth_len, msg.auth = TAG_BYTES, bytes(TAG_BYTES)
+    data = bytearray(msg.encode())
+    data[-TAG_BYTES:] = _tag(key, data)
+    return bytes(data)
+
+
+def timing_signed(data: bytes, key: bytes) -> bool:
+    """Whether an encoded loop_timing_t carries the tag of ``key`` (constant-time compare)."""
+    return len(data) > TAG_BYTES and hmac.compare_digest(_tag(key, data), data[-TAG_BYTES:])

@@ -49,7 +49,7 @@ from runtime.checkpoint import remove_checkpoints
 from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
-from runtime.pairing import TOKEN_ENV
+from runtime.pairing import TIMING_KEY_ENV, TOKEN_ENV, timing_signed
 from runtime.scheduling import describe, pin_to_supervisor_host, process_cpu_s
 from runtime.succession import create_lock, lock_path
 
@@ -203,6 +203,8 @@ class Supervisor:
         self.profile = profile
         #: this launch's sim <-> bridge pairing token (runtime.pairing.link_token)
         self.link_token = secrets.randbits(32) | 1
+        #: the processes sign their TIMING with it (runtime.pairing); it never goes on the bus
+        self.timing_key = secrets.token_bytes(16)
         #: build every node once (``cassie check``) before anything starts
         self.check_first = check_first
         stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -293,6 +295,10 @@ class Supervisor:
             self._refuse("TIMING", f"from {msg.header.source!r} for process {msg.process!r}, "
                          "not one this supervisor runs")
             return
+        if not timing_signed(data, self.timing_key):
+            self._refuse("TIMING", f"for process {msg.process!r} without this launch's "
+                         "signature (another launch's, or spoofed)")
+            return
         if child.popen is None:  # a last report of a process being stopped: nothing to take
             return
         child.last_msg_ns = time.monotonic_ns()
@@ -361,6 +367,7 @@ class Supervisor:
         # the sim takes torque packets only with this launch's token: a bridge of another
         # run or stack (or any tool) cannot command the robot (docs/udp_protocol.md)
         env[TOKEN_ENV] = str(self.link_token)
+        env[TIMING_KEY_ENV] = self.timing_key.hex()
         # one thread per process: numpy's OpenBLAS starts a worker per core at import, which
         # the loops' small matrices never use; unpinned and at normal priority beside the
         # real-time loops, that idle thread took ~50 ms to die on a kill -9 (the process is

@@ -214,13 +214,15 @@ def _started(proc: object, profile: object) -> None:
     supervisor's sign that it started, as a node's runner sends after its setup."""
     from lcmtypes import loop_timing_t
     from runtime.bus import Bus
+    from runtime.loops import publish_timing
+    from runtime.pairing import timing_key
 
     msg = loop_timing_t()
     msg.process = msg.loop = msg.header.source = proc.name  # type: ignore[attr-defined]
     msg.kind = "main"
     msg.status = "started"
     bus = Bus.for_profile(profile, source=proc.name)  # type: ignore[arg-type]
-    bus.publish(profile.timing_channel, msg)  # type: ignore[attr-defined]
+    publish_timing(bus, profile.timing_channel, msg, timing_key())  # type: ignore[attr-defined]
     bus.close()
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import os
 import signal
 import time
@@ -11,6 +12,7 @@ import psutil
 
 from lcmtypes import supervisor_status_t
 from runtime.bus import Bus
+from runtime.pairing import sign_timing
 from tests.conftest import PROFILES, cassie, wait_for
 
 
@@ -208,9 +210,19 @@ def test_garbage_spoofed_timing_and_unknown_orders_are_ignored_and_counted(lcm_u
         spoof.process, spoof.header.source, spoof.status = "ticker", "not-ticker", "fine"
         stranger = loop_timing_t()
         stranger.process = stranger.header.source = "intruder"
-        for raw in (b"\x00garbage", spoof.encode(), stranger.encode()):
+        # the right process and source, but not signed with this launch's key
+        forged = loop_timing_t()
+        forged.process = forged.header.source = "ticker"
+        forged.status, forged.health = "fine", 2
+        other_launch = sign_timing(copy.copy(forged), b"k" * 16)
+        for raw in (b"\x00garbage", spoof.encode(), stranger.encode(), forged.encode(),
+                    other_launch):
             sup._on_timing("TIMING", raw)
         assert sup.children["ticker"].status != "fine"
+        assert not sup.children["ticker"].fault
+        assert sup.refused["TIMING"] == 5
+        sup._on_timing("TIMING", sign_timing(forged, sup.timing_key))
+        assert sup.refused["TIMING"] == 5  # the launch's own key: not refused
         bad = supervisor_orders_t()
         bad.process, bad.order = "ticker", "explode"
         nobody = supervisor_orders_t()
@@ -218,10 +230,10 @@ def test_garbage_spoofed_timing_and_unknown_orders_are_ignored_and_counted(lcm_u
         for raw in (b"\x01junk", bad.encode(), nobody.encode()):
             sup._on_order("SUPERVISOR_ORDERS", raw)
         assert all(c.popen is None for c in sup.children.values())  # nothing was started
-        assert sup.refused == {"TIMING": 3, "order": 3}
+        assert sup.refused == {"TIMING": 5, "order": 3}
         sup._print_summary()
         text = out.getvalue()
-        assert "ignored: 3 TIMING message(s)" in text and "ignored: 3 order message(s)" in text
+        assert "ignored: 5 TIMING message(s)" in text and "ignored: 3 order message(s)" in text
         assert "ignored order #1: malformed" in text  # said as it happened
         assert "last: start of unknown process 'intruder'" in text
     finally:
