@@ -330,10 +330,13 @@ class LiveRunner:
                 receiver.join(1.0)
             self.node.close()
             ck = self.guard.checkpoint
-            if ck is not None and os.getppid() != self._parent:
+            if os.getppid() != self._parent:
                 # the supervisor is gone (killed: no one removes the launch's state files and
                 # no successor will load this one): leave nothing behind in /dev/shm
-                ck.remove()
+                if ck is not None:
+                    ck.remove()
+                if succession is not None:
+                    succession.path.unlink(missing_ok=True)
             for s in self._udp_out.values():
                 s.close()
             for p in self.ports.values():

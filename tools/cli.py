@@ -295,6 +295,9 @@ def build_parser() -> argparse.ArgumentParser:
                    add_help=False)
     sub.add_parser("check", help="build every process of a profile (params, gains, channels) "
                    "without running it", add_help=False)
+    sub.add_parser("types", help="the LCM types for Java (lcm-spy) and C++", add_help=False)
+    sub.add_parser("spy", help="lcm-spy on a profile's buses, decoding every channel",
+                   add_help=False)
     return p
 
 
@@ -309,7 +312,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "bench":
             return _cmd_bench(args, rest)
-        if args.command in ("experiment", "dashboard", "report", "command", "log", "check"):
+        if args.command in ("experiment", "dashboard", "report", "command", "log", "check",
+                            "types", "spy"):
             module = {"log": "logger"}.get(args.command, args.command)
             return _cmd_module(f"tools.{module}", rest)
         if rest:
