@@ -105,6 +105,19 @@ def _stop_group(popen: subprocess.Popen[bytes],
     return ignored
 
 
+def logs_home() -> Path:
+    """Where launches keep their logs unless told (``--log-dir``): the user's state folder
+    (``$XDG_STATE_HOME/cassie/logs``, by default ``~/.local/state/cassie/logs``), not the
+    checkout, as ``ros2 launch`` keeps ``~/.ros/log``."""
+    base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
+    return Path(base) / "cassie" / "logs"
+
+
+def new_log_dir(profile_name: str) -> Path:
+    """A launch's own log folder under :func:`logs_home`, named after its start and profile."""
+    return logs_home() / f"{time.strftime('%Y%m%d-%H%M%S')}-{profile_name}"
+
+
 class CpuShare:
     """A process tree's share of a core since the previous call, from the kernel's
     nanosecond CPU clocks (:func:`process_cpu_s`): each pid counts what it ran in between, a
@@ -207,8 +220,7 @@ class Supervisor:
         self.timing_key = secrets.token_bytes(16)
         #: build every node once (``cassie check``) before anything starts
         self.check_first = check_first
-        stamp = time.strftime("%Y%m%d-%H%M%S")
-        self.log_dir = Path(log_dir) if log_dir else REPO_ROOT / "logs" / f"{stamp}-{profile.name}"
+        self.log_dir = Path(log_dir) if log_dir else new_log_dir(profile.name)
         self.duration_s = duration_s
         self.out = out or sys.stdout
         self.live_table = self.out.isatty() if live_table is None else live_table

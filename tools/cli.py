@@ -17,13 +17,21 @@ BENCHMARKS = ("sim", "estimator", "mpfc", "osc", "s3", "lcm", "launch", "bridge"
 
 
 def _cmd_launch(args: argparse.Namespace) -> int:
-    from runtime.config import load_profile
-    from runtime.supervisor import Supervisor
+    from runtime.config import find_profile, load_profile
+    from runtime.supervisor import Supervisor, new_log_dir
 
-    profile = load_profile(args.profile)
+    log_dir = Path(args.log_dir) if args.log_dir else None
+    path = find_profile(args.profile)
+    if args.overrides:  # key:=value: a profile of the changes, kept in the launch's logs
+        from tools.overrides import write_overlay
+
+        log_dir = log_dir or new_log_dir(load_profile(path).name)
+        path = write_overlay(path, args.overrides, log_dir)
+        print(f"overrides: {' '.join(args.overrides)} (profile {path})")
+    profile = load_profile(path)
     sup = Supervisor(
         profile,
-        log_dir=Path(args.log_dir) if args.log_dir else None,
+        log_dir=log_dir,
         duration_s=args.duration,
         live_table=False if args.no_live else None,
         log_lcm=args.log,
@@ -255,11 +263,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     launch = sub.add_parser("launch", help="run a launch profile under the supervisor")
     launch.add_argument("profile", help="profile name or path, e.g. hw_config/sim.yaml")
+    launch.add_argument("overrides", nargs="*", metavar="KEY:=VALUE",
+                        help="changes to the profile: mode:=lockstep, osc.params.NAME:=V, "
+                             "osc.rate_hz:=V, osc.gains.A.B:=V (tools/overrides.py)")
     launch.add_argument(
         "--duration", type=float, default=None,
         help="run for S seconds once every process is ready, print a summary and exit",
     )
-    launch.add_argument("--log-dir", default=None, help="folder for per-process logs")
+    launch.add_argument("--log-dir", default=None,
+                        help="folder for per-process logs (default: a new folder under "
+                             "$XDG_STATE_HOME/cassie/logs, ~/.local/state/cassie/logs)")
     launch.add_argument(
         "--log",
         action="store_true",

@@ -1,0 +1,54 @@
+"""``cassie launch PROFILE key:=value``: a gain, a param, a process key and the mode changed
+from the command line reach the processes as built, through a profile written into the
+launch's log folder; a key that is not there is a clear error before anything starts."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from processes.osc.process import make_node as make_osc
+from runtime.config import HW_CONFIG_DIR, load_profile
+from runtime.errors import ConfigError
+from tests.conftest import REPO
+from tools.overrides import write_overlay
+
+
+def test_a_gain_a_param_a_process_key_and_the_mode_reach_the_built_processes(
+        tmp_path: Path) -> None:
+    out = write_overlay(HW_CONFIG_DIR / "sim.yaml",
+                        ["mode:=lockstep", "osc.gains.walking.swing_clearance:=0.12",
+                         "torque_bridge.params.release_after_s:=2.5", "osc.nice:=-5"], tmp_path)
+    profile = load_profile(out)
+    assert profile.mode == "lockstep"
+    osc = profile.processes["osc"]
+    assert osc.nice == -5
+    assert make_osc(osc, profile).params.walking.swing_clearance == pytest.approx(0.12)
+    assert profile.processes["torque_bridge"].params["release_after_s"] == 2.5
+    # the rest as in the profile, and the profile itself untouched
+    base = load_profile(HW_CONFIG_DIR / "sim.yaml")
+    assert make_osc(base.processes["osc"], base).params.walking.swing_clearance == 0.15
+    assert profile.launch == base.launch
+
+
+@pytest.mark.parametrize(("item", "says"), [
+    ("osc.gains.walking.swing_clearence:=0.1", "no such gain"),
+    ("nosuch.params.x:=1", "is no process of profile sim"),
+    ("mode:=sideways", "not one of the allowed values"),
+    ("osc.rate_hz:=fast", "must be a number"),
+    ("osc=1", "not an override"),
+])
+def test_a_bad_override_is_a_clear_error(item: str, says: str, tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=says):
+        write_overlay(HW_CONFIG_DIR / "sim.yaml", [item], tmp_path)
+
+
+def test_the_launch_command_reports_a_bad_override_before_it_starts(tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, "-m", "tools.cli", "launch", "sim",
+                           "osc.gains.walking.nope:=1", "--log-dir", str(tmp_path)],
+                          capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "walking.nope: no such gain" in done.stderr
