@@ -15,11 +15,11 @@ class supervisor_status_t(object):
     catches up from any one message.
     """
 
-    __slots__ = ["header", "profile", "state", "uptime_s", "num_processes", "processes"]
+    __slots__ = ["header", "profile", "state", "uptime_s", "num_processes", "processes", "log_dir"]
 
-    __typenames__ = ["lcmtypes.header_t", "string", "string", "double", "int32_t", "lcmtypes.process_status_t"]
+    __typenames__ = ["lcmtypes.header_t", "string", "string", "double", "int32_t", "lcmtypes.process_status_t", "string"]
 
-    __dimensions__ = [None, None, None, None, None, ["num_processes"]]
+    __dimensions__ = [None, None, None, None, None, ["num_processes"], None]
 
     def __init__(self):
         self.header = lcmtypes.header_t()
@@ -38,6 +38,8 @@ class supervisor_status_t(object):
         """ LCM Type: int32_t """
         self.processes = []
         """ LCM Type: lcmtypes.process_status_t[num_processes] """
+        self.log_dir = ""
+        """ LCM Type: string """
 
     def encode(self):
         buf = BytesIO()
@@ -60,6 +62,10 @@ class supervisor_status_t(object):
         for i0 in range(self.num_processes):
             assert self.processes[i0]._get_packed_fingerprint() == lcmtypes.process_status_t._get_packed_fingerprint()
             self.processes[i0]._encode_one(buf)
+        __log_dir_encoded = self.log_dir.encode('utf-8')
+        buf.write(struct.pack('>I', len(__log_dir_encoded)+1))
+        buf.write(__log_dir_encoded)
+        buf.write(b"\0")
 
     @staticmethod
     def decode(data: bytes):
@@ -83,13 +89,15 @@ class supervisor_status_t(object):
         self.processes = []
         for i0 in range(self.num_processes):
             self.processes.append(lcmtypes.process_status_t._decode_one(buf))
+        __log_dir_len = struct.unpack('>I', buf.read(4))[0]
+        self.log_dir = buf.read(__log_dir_len)[:-1].decode('utf-8', 'replace')
         return self
 
     @staticmethod
     def _get_hash_recursive(parents):
         if supervisor_status_t in parents: return 0
         newparents = parents + [supervisor_status_t]
-        tmphash = (0xb3e9ed0244e65a98+ lcmtypes.header_t._get_hash_recursive(newparents)+ lcmtypes.process_status_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
+        tmphash = (0x1ca54d36c730ff47+ lcmtypes.header_t._get_hash_recursive(newparents)+ lcmtypes.process_status_t._get_hash_recursive(newparents)) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

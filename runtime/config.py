@@ -165,7 +165,7 @@ def find_profile(name_or_path: str) -> Path:
     for candidate in (HW_CONFIG_DIR / name_or_path, HW_CONFIG_DIR / f"{name_or_path}.yaml"):
         if candidate.is_file():
             return candidate.resolve()
-    known = sorted(x.stem for x in HW_CONFIG_DIR.glob("*.yaml") if _is_profile(x))
+    known = sorted(x.stem for x in HW_CONFIG_DIR.glob("*.yaml") if is_profile(x))
     raise ConfigError(
         name_or_path,
         "<profile>",
@@ -174,7 +174,8 @@ def find_profile(name_or_path: str) -> Path:
     )
 
 
-def _is_profile(path: Path) -> bool:
+def is_profile(path: Path) -> bool:
+    """Whether a YAML file is a launch profile (it names what to launch)."""
     try:
         return "launch" in load_yaml(path)
     except ConfigError:
@@ -709,6 +710,7 @@ def _process(
         host=host,
         module=module,
         source_file=file,
+        description=str(d.get("description", "")),
         rate_hz=rate,
         deadline_ms=deadline,
         inputs=inputs,

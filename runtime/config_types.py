@@ -61,6 +61,7 @@ class ProcessConfig:
     host: str
     module: str  # python module defining make_node(proc, profile) or main(proc, profile)
     source_file: Path  # the YAML file the process was defined in (for error messages)
+    description: str = ""  # what it does, in a line (`cassie list PROFILE`)
     rate_hz: float | None = None  # periodic rate, or the expected rate of a message-driven loop
     deadline_ms: float | None = None
     inputs: dict[str, ChannelConfig] = field(default_factory=dict)  # role -> channel

@@ -814,6 +814,7 @@ class Supervisor:
         msg.profile = self.profile.name
         msg.state = self.state
         msg.uptime_s = time.monotonic() - self.t0
+        msg.log_dir = str(self.log_dir)
         now_ns = time.monotonic_ns()
         for child in self.children.values():
             p = process_status_t()

@@ -309,6 +309,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("check", help="build every process of a profile (params, gains, channels) "
                    "without running it", add_help=False)
     sub.add_parser("types", help="the LCM types for Java (lcm-spy) and C++", add_help=False)
+    sub.add_parser("list", help="the profiles, or one profile's processes", add_help=False)
+    sub.add_parser("order", help="start, stop or restart a process of a running launch",
+                   add_help=False)
+    sub.add_parser("logs", help="a process's log of the running launch (-f: follow)",
+                   add_help=False)
     sub.add_parser("spy", help="lcm-spy on a profile's buses, decoding every channel",
                    add_help=False)
     return p
@@ -325,6 +330,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "bench":
             return _cmd_bench(args, rest)
+        if args.command in ("list", "order", "logs"):
+            from tools import control
+
+            return int(getattr(control, f"cmd_{args.command}")(rest))
         if args.command in ("experiment", "dashboard", "report", "command", "log", "check",
                             "types", "spy"):
             module = {"log": "logger"}.get(args.command, args.command)
