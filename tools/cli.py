@@ -295,7 +295,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="set up, then wait for `go` on stdin before running (the "
                           "supervisor's spare for restart.standby)")
 
-    bench = sub.add_parser("bench", help="a benchmark: " + ", ".join(BENCHMARKS))
+    # (its own options are the benchmark's: `cassie bench s3 --help` is the s3 benchmark's)
+    bench = sub.add_parser("bench", help="a benchmark: " + ", ".join(BENCHMARKS),
+                           add_help=False)
     bench.add_argument("name", choices=BENCHMARKS)
 
     sub.add_parser(
@@ -321,8 +323,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    # -v / --verbose anywhere on the line, not only before the subcommand (no subcommand has
+    # a -v of its own)
+    verbose = any(a in ("-v", "--verbose") for a in argv)
+    argv = [a for a in argv if a not in ("-v", "--verbose")]
     parser = build_parser()
+    if argv[:1] == ["bench"] and (len(argv) == 1 or argv[1].startswith("-")):
+        print("usage: cassie bench NAME [options]; NAME one of: " + ", ".join(BENCHMARKS)
+              + "\n(`cassie bench NAME --help`: that benchmark's options)")
+        return 0 if argv[1:2] in (["-h"], ["--help"]) else 2
     args, rest = parser.parse_known_args(argv)
+    args.verbose = args.verbose or verbose
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.INFO,
         format="%(asctime)s %(name)s %(levelname)s: %(message)s",
