@@ -174,6 +174,25 @@ def find_profile(name_or_path: str) -> Path:
     )
 
 
+#: the environment variable naming this stack's instance on a shared machine (0, 1, ...)
+INSTANCE_ENV = "CASSIE_INSTANCE"
+#: each instance moves every port (LCM domains, UDP links) up by this much
+INSTANCE_PORT_STEP = 20
+
+
+def instance() -> int:
+    """This stack's instance (``$CASSIE_INSTANCE``, 0 when unset): two stacks on one machine
+    with different instances use different ports everywhere, so neither hears the other."""
+    raw = os.environ.get(INSTANCE_ENV, "").strip()
+    if not raw:
+        return 0
+    if not raw.isdigit() or not 0 <= int(raw) <= 99:
+        raise ConfigError("the environment", INSTANCE_ENV, f"{raw!r} is not an instance",
+                          "an integer 0 .. 99 (each moves every port up by "
+                          f"{INSTANCE_PORT_STEP}), or unset")
+    return int(raw)
+
+
 def is_profile(path: Path) -> bool:
     """Whether a YAML file is a launch profile (it names what to launch)."""
     try:
@@ -367,6 +386,11 @@ def load_profile(path: str | Path) -> Profile:
     url = os.environ.get("CASSIE_LCM_URL") or (
         lcm_url[0] if lcm_url else "udpm://239.255.76.67:7667"
     )
+    base_url = url
+    if (n := instance()) and url.startswith("udpm://"):
+        base = urlparse(url)
+        url = urlunparse(base._replace(
+            netloc=f"{base.hostname}:{(base.port or 7667) + INSTANCE_PORT_STEP * n}"))
 
     hosts = {}
     for hname, (value, file) in sections["hosts"].items():
@@ -385,8 +409,9 @@ def load_profile(path: str | Path) -> Profile:
             hname,
             hc.string(h, f"hosts.{hname}", "address"),
             str(h.get("description", "")),
-            hc.number(h, f"hosts.{hname}", "lcm_port_offset", default=0, lo=0, hi=1000,
-                      integer=True),
+            # (below the instance step: a host's port must not be the next instance's)
+            hc.number(h, f"hosts.{hname}", "lcm_port_offset", default=0, lo=0,
+                      hi=INSTANCE_PORT_STEP - 1, integer=True),
             tuple(cpus) if cpus else None,
         )
 
@@ -453,6 +478,7 @@ def load_profile(path: str | Path) -> Profile:
         hw_config_dir=hw_dir,
         mode=mode,
         lcm_url=url,
+        base_lcm_url=base_url,
         hosts=hosts,
         channels=channels,
         processes=processes,
@@ -581,7 +607,8 @@ def _channel(cname: str, value: Any, file: Path) -> ChannelConfig:
             raise ck.fail(
                 f"{key}.udp", f"{addr!r} is not HOST:PORT", allowed="e.g. 127.0.0.1:25000"
             )
-        return ChannelConfig(cname, f"udp:{addr}", udp=(host, int(port_s)))
+        port = int(port_s) + INSTANCE_PORT_STEP * instance()
+        return ChannelConfig(cname, f"udp:{host}:{port}", udp=(host, port))
     name = ck.string(d, key, "name")
     if not name.replace("_", "").isalnum():
         raise ck.fail(f"{key}.name", f"{name!r} is not a valid LCM channel name",

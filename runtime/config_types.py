@@ -127,6 +127,9 @@ class Profile:
     #: real-time factor of a ``realtime`` run: sim seconds per wall second (0.5 on a machine
     #: too slow for 1); periods, deadlines and wall-clock budgets scale by 1 / rtf
     rtf: float = 1.0
+    #: the URL before the instance offset (``$CASSIE_INSTANCE``) moved it: what a process
+    #: started with the same instance must be given as ``$CASSIE_LCM_URL``
+    base_lcm_url: str = ""
 
     def resolve(self, relative: str | Path) -> Path:
         """A path from a config value, relative to the hw_config folder."""

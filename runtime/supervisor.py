@@ -373,7 +373,8 @@ class Supervisor:
         env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT), env.get("PYTHONPATH", "")]).rstrip(
             os.pathsep
         )
-        env["CASSIE_LCM_URL"] = self.profile.lcm_url
+        # (before the instance offset: each child moves it by its $CASSIE_INSTANCE itself)
+        env["CASSIE_LCM_URL"] = self.profile.base_lcm_url or self.profile.lcm_url
         env["PYTHONUNBUFFERED"] = "1"
         env["CASSIE_SUPERVISED"] = "1"
         # the sim takes torque packets only with this launch's token: a bridge of another

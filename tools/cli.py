@@ -20,6 +20,8 @@ def _cmd_launch(args: argparse.Namespace) -> int:
     from runtime.config import find_profile, load_profile
     from runtime.supervisor import Supervisor, new_log_dir
 
+    if args.instance is not None:  # (the processes inherit it with the environment)
+        os.environ["CASSIE_INSTANCE"] = str(args.instance)
     log_dir = Path(args.log_dir) if args.log_dir else None
     path = find_profile(args.profile)
     if args.overrides:  # key:=value: a profile of the changes, kept in the launch's logs
@@ -270,6 +272,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--duration", type=float, default=None,
         help="run for S seconds once every process is ready, print a summary and exit",
     )
+    launch.add_argument("--instance", type=int, default=None, metavar="N",
+                        help="this stack's instance on a shared machine: every port (LCM, UDP) "
+                             "moves up by 20*N (the same as CASSIE_INSTANCE=N, which cassie "
+                             "order, logs and spy read)")
     launch.add_argument("--log-dir", default=None,
                         help="folder for per-process logs (default: a new folder under "
                              "$XDG_STATE_HOME/cassie/logs, ~/.local/state/cassie/logs)")
