@@ -107,6 +107,11 @@ def _utime(msg: Any) -> int:
 
 #: how long a UDP input port may stay taken before the runner gives up binding it
 BIND_WAIT_S = 1.0
+#: a trigger stamped further than this before its arrival (or after it) is timed from its
+#: arrival: its stamp is not a send time of this host's CLOCK_MONOTONIC (a replayed log, whose
+#: messages keep their recorded stamps: perception reported a lateness of 161,608 ms; or
+#: another host's clock)
+FOREIGN_CLOCK_NS = 1_000_000_000
 
 
 def publish_timing(bus: Bus, channel: str, msg: Any, key: bytes | None) -> None:
@@ -134,6 +139,8 @@ class LiveRunner:
         self.profile = profile
         self.bus = bus or Bus.for_profile(profile, source=proc.name)
         self._timing_key = timing_key()  # signs its TIMING (None outside a launch)
+        #: triggers whose send time was not this host's clock (see FOREIGN_CLOCK_NS)
+        self.timed_from_arrival = 0
         self.stop_event = threading.Event()
         if node.period_s is None and node.trigger_role is None and proc.rate_hz:
             node.period_s = 1.0 / proc.rate_hz
@@ -275,6 +282,8 @@ class LiveRunner:
         rejected = sum(p.rejected for p in self.ports.values())
         counters["inputs_rejected"] = float(rejected)
         counters["tick_errors"] = float(self.guard.errors)
+        if self.timed_from_arrival:
+            counters["inputs_timed_from_arrival"] = float(self.timed_from_arrival)
         status, health = node.status(), node.health()
         if self.guard.errors:
             status += f" | {self.guard.errors} tick errors, last: {self.guard.last_error}"
@@ -515,6 +524,13 @@ class LiveRunner:
             utime = (port.newest_utime() if isinstance(port, Subscription) else None) or 0
         else:
             sent = _send_ns(msg) or port.last_receive_ns
+            arrived = port.last_receive_ns
+            if arrived and not 0 <= arrived - sent <= FOREIGN_CLOCK_NS:
+                # not a send time of this host's clock moments ago: a log replayed
+                # (lcm-logplayer keeps the recorded stamps) or another host's clock; timed
+                # from its arrival here instead, and counted
+                sent = arrived
+                self.timed_from_arrival += 1
             utime = _utime(msg)
         if utime:
             self.ctx.now_utime = utime
