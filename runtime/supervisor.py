@@ -235,11 +235,16 @@ class Supervisor:
         if log_lcm:
             # every domain (each host's bus and the network) into one log, read in batches so
             # that recording never wakes anyone's CPU per message (tools/logger.py)
+            # In lockstep the stack runs flat out at real-time priority and a nice 10 logger
+            # starved: 173,563 datagrams (depth frames, maps) lost to full buffers in a 12 s
+            # perception run, no map logged at all. There it reads at the lowest FIFO priority
+            # (sim time waits a moment; it has no deadline); in real time it stays nice 10,
+            # below every loop.
             self._add_helper(
                 "logger",
                 [sys.executable, "-m", "tools.cli", "log", str(profile.path),
                  str(self.log_dir / "lcm.log")],
-                first=True, nice=10,
+                first=True, nice=10, rt_priority=1 if profile.mode == "lockstep" else None,
             )
         if dashboard:
             # Started before the stack so it sees everything; it records headless into the log
@@ -267,7 +272,8 @@ class Supervisor:
         self.bus.subscribe_raw(profile.orders_channel, self._on_order)
 
     def _add_helper(self, name: str, command: list[str], first: bool = False,
-                    nice: int | None = None, cpus: tuple[int, ...] | None = None) -> None:
+                    nice: int | None = None, cpus: tuple[int, ...] | None = None,
+                    rt_priority: int | None = None) -> None:
         """A supporting program (logger, dashboard): supervised, never required, no heartbeat."""
         proc = ProcessConfig(
             name=name,
@@ -276,6 +282,7 @@ class Supervisor:
             source_file=self.profile.path,
             required=False,
             nice=nice,
+            rt_priority=rt_priority,
             cpu_affinity=cpus if cpus is not None else getattr(self, "home_cpus", None),
             restart=RestartPolicy(policy="on-failure", max_restarts=3),
         )
@@ -533,6 +540,9 @@ class Supervisor:
             try:
                 if child.proc.nice is not None:
                     os.setpriority(os.PRIO_PROCESS, child.pid, child.proc.nice)
+                if child.proc.rt_priority is not None:
+                    os.sched_setscheduler(child.pid, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK,
+                                          os.sched_param(child.proc.rt_priority))
             except OSError:
                 pass
 

@@ -318,6 +318,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "without running it", add_help=False)
     sub.add_parser("types", help="the LCM types for Java (lcm-spy) and C++", add_help=False)
     sub.add_parser("list", help="the profiles, or one profile's processes", add_help=False)
+    sub.add_parser("replay", help="feed a log to processes in the deterministic harness",
+                   add_help=False)
     sub.add_parser("order", help="start, stop or restart a process of a running launch",
                    add_help=False)
     sub.add_parser("logs", help="a process's log of the running launch (-f: follow)",
@@ -352,7 +354,7 @@ def main(argv: list[str] | None = None) -> int:
 
             return int(getattr(control, f"cmd_{args.command}")(rest))
         if args.command in ("experiment", "dashboard", "report", "command", "log", "check",
-                            "types", "spy"):
+                            "types", "spy", "replay"):
             module = {"log": "logger"}.get(args.command, args.command)
             return _cmd_module(f"tools.{module}", rest)
         if rest:
