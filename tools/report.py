@@ -165,6 +165,8 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
             "undecodable": undecodable.get(ch, 0),
         }
     loops = {}
+    #: the raw samples behind the tables (for ``--plots``; not in the JSON)
+    samples: dict[str, dict[str, np.ndarray]] = {"loops": {}, "hops": {}}
     for (proc, loop), msgs in sorted(timing.items()):
         msgs = [m for m in msgs if m.kind != "main"]  # a non-Node process's start signal
         if not msgs:
@@ -199,6 +201,7 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
         )
         row["within_budget"] = all(_within(row, k, v) for k, v in limits.items())
         loops[f"{proc}/{loop}"] = row
+        samples["loops"][f"{proc}/{loop}"] = ex
     cpu = _cpu_table(timing, timing_ts, watchers, budgets)
     realtime = _realtime(timing, timing_ts, budgets, cpu.get("window"))
     hops = {}
@@ -222,7 +225,9 @@ def analyse(log_path: Path, budgets: Budgets) -> dict[str, Any]:
             hop["p99_ms"] <= 0 or row["latency_p99_ms"] <= hop["p99_ms"]
         )
         hops[hop["name"]] = row
-    return {"channels": channels, "loops": loops, "hops": hops, "cpu": cpu, "realtime": realtime}
+        samples["hops"][hop["name"]] = lat
+    return {"channels": channels, "loops": loops, "hops": hops, "cpu": cpu, "realtime": realtime,
+            "samples": samples}
 
 
 def _within(row: dict[str, Any], key: str, limit: float) -> bool:
@@ -576,28 +581,75 @@ def flatten(rep: dict[str, Any]) -> dict[str, Any]:
 
 
 def plot(rep: dict[str, Any], log_path: Path, out_dir: Path) -> list[Path]:
-    """PNG histograms of execution time per loop and latency per hop (needs matplotlib)."""
+    """PNG histograms of execution time per loop and latency per hop, one panel each, with
+    the medians, p99s, deadlines and budgets drawn (needs matplotlib)."""
     try:
         import matplotlib
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from matplotlib import ticker
     except ImportError as exc:
         raise SystemExit("--plots needs matplotlib: pip install matplotlib") from exc
     out_dir.mkdir(parents=True, exist_ok=True)
+    samples = rep.get("samples") or {"loops": {}, "hops": {}}
     paths = []
-    names = list(rep["loops"])
-    if names:
-        fig, ax = plt.subplots(figsize=(9, 1.2 + 0.5 * len(names)))
-        ax.barh(names, [rep["loops"][n]["exec_p99_ms"] for n in names], label="p99")
-        ax.barh(names, [rep["loops"][n]["exec_p50_ms"] for n in names], label="median")
-        ax.set_xlabel("execution time, ms")
-        ax.legend()
+
+    def panels(kind: str, title: str, xlabel: str, marks: Any) -> Path | None:
+        data = {n: a for n, a in samples[kind].items() if a.size}
+        if not data:
+            return None
+        cols = 2 if len(data) > 1 else 1
+        rows = (len(data) + cols - 1) // cols
+        fig, axes = plt.subplots(rows, cols, figsize=(6.5 * cols, 2.6 * rows), squeeze=False)
+        for ax, (name, a) in zip(axes.flat, data.items(), strict=False):
+            lo = max(float(a.min()), 1e-3)
+            hi = max(float(a.max()), lo * 1.01)
+            bins = np.geomspace(lo, hi, 60)  # log bins: the tail is what matters
+            ax.hist(a, bins=bins, color="#4c72b0")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.xaxis.set_major_formatter(ticker.FormatStrFormatter("%g"))
+            ax.xaxis.set_minor_formatter(ticker.NullFormatter())
+            p50, p99 = np.percentile(a, [50, 99])
+            ax.axvline(p50, color="k", lw=1, label=f"median {p50:.3f} ms")
+            ax.axvline(p99, color="k", lw=1, ls="--", label=f"p99 {p99:.3f} ms")
+            for value, label, color in marks(name):
+                ax.axvline(value, color=color, lw=1.5, label=label)
+            ax.set_title(f"{name} (n={a.size:,})", fontsize=10)
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel("count")
+            ax.legend(fontsize=7, loc="upper right")
+        for ax in list(axes.flat)[len(data):]:
+            ax.axis("off")
+        fig.suptitle(f"{title}: {log_path.name}", fontsize=11)
         fig.tight_layout()
-        p = out_dir / "loops_exec.png"
-        fig.savefig(p, dpi=100)
+        p = out_dir / f"{kind}_{'exec' if kind == 'loops' else 'latency'}_hist.png"
+        fig.savefig(p, dpi=90)
         plt.close(fig)
-        paths.append(p)
+        return p
+
+    def loop_marks(name: str) -> list[tuple[float, str, str]]:
+        r = rep["loops"][name]
+        out = []
+        if r.get("deadline_ms"):
+            out.append((float(r["deadline_ms"]), f"deadline {r['deadline_ms']:g} ms", "red"))
+        for part in str(r.get("budget", "")).split(", "):
+            m = re.match(r"exec_(p\d+|median)_ms<=([0-9.]+)", part)
+            if m:
+                out.append((float(m.group(2)), f"budget {m.group(1)} <= {m.group(2)} ms",
+                            "orange"))
+        return out
+
+    def hop_marks(name: str) -> list[tuple[float, str, str]]:
+        b = rep["hops"][name].get("budget_p99_ms") or 0.0
+        return [(float(b), f"budget p99 <= {b:g} ms", "orange")] if b > 0 else []
+
+    for kind, title, xlabel, marks in (
+            ("loops", "Execution time per loop", "execution time, ms", loop_marks),
+            ("hops", "Latency per hop", "latency, ms", hop_marks)):
+        if (p := panels(kind, title, xlabel, marks)) is not None:
+            paths.append(p)
     return paths
 
 

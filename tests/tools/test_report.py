@@ -49,7 +49,9 @@ def test_report_of_a_logged_launch_prints_channels_loops_and_hops(lcm_url, procs
     assert 0 < fig["cpu_ticker_share"] < 0.5 and 0 < fig["cpu_echo_share"] < 0.5
     assert 0 < fig["loop_ticker_ticker_cpu_p50_ms"] <= fig["loop_ticker_ticker_exec_p50_ms"] * 2
     assert fig["cpu_total_share"] >= fig["cpu_ticker_share"] + fig["cpu_echo_share"]
-    assert (tmp_path / "plots" / "loops_exec.png").exists()
+    # one histogram panel per loop and per hop, with the deadlines and budgets drawn
+    assert (tmp_path / "plots" / "loops_exec_hist.png").stat().st_size > 10_000
+    assert (tmp_path / "plots" / "hops_latency_hist.png").stat().st_size > 5_000
 
 
 def test_report_on_missing_log_says_so(tmp_path):
