@@ -261,6 +261,7 @@ class Supervisor:
         self._refused_last: dict[str, str] = {}
         self._stop_requested = False
         self._next_standby_at = 0.0
+        self._noted: dict[str, str] = {}  # the state last printed of each process
         #: pid -> pidfd of each running child: the main loop wakes on a child's exit
         self._pidfds: dict[int, int] = {}
         self._status_seq = 0
@@ -593,6 +594,7 @@ class Supervisor:
                 self._wait(0.1)
                 now = time.monotonic()
                 self._supervise(now)
+                self._note_states()
                 if now - last_status >= 1.0:
                     self._sample_resources(now)
                     self.publish_status()
@@ -681,16 +683,34 @@ class Supervisor:
         return False
 
     def _start_all(self) -> bool:
+        self._noted = {n: c.state for n, c in self.children.items()}
         for name in self.order:
             child = self.children[name]
             self._start_child(child)
+            self._note_states()
             if not self._wait_ready(child):
+                self._note_states()
                 return False
+            self.out.write(f"{name}: ready in {child.ready_at - child.started_at:.1f} s\n")
+            self._noted[name] = child.state
         return True
+
+    def _note_states(self) -> None:
+        """One line per process whose state changed since the last call: the start-up and
+        every crash, restart or take-over show as they happen, not at the next table."""
+        for name, child in self.children.items():
+            if self._noted.get(name) != child.state:
+                was = self._noted.get(name, "-")
+                self._noted[name] = child.state
+                why = f" ({child.detail})" if child.detail else ""
+                pid = f", pid {child.pid}" if child.popen is not None else ""
+                self.out.write(f"[{time.monotonic() - self.t0:6.1f} s] {name}: {was} -> "
+                               f"{child.state}{pid}{why}\n")
 
     def _wait_ready(self, child: Child) -> bool:
         deadline = time.monotonic() + child.proc.ready_timeout_s
         last_status = 0.0
+        waited_note = time.monotonic() + 10.0
         while time.monotonic() < deadline and not self._stop_requested:
             self.bus.poll_every(0.05)
             now = time.monotonic()
@@ -698,6 +718,12 @@ class Supervisor:
                 self._sample_resources(now)
                 self.publish_status()
                 last_status = now
+            if now >= waited_note:  # a minute of numba compiling must not look like a hang
+                waited_note = now + 10.0
+                self.out.write(f"{child.proc.name}: still setting up after "
+                               f"{now - child.started_at:.0f} s (ready within "
+                               f"{child.proc.ready_timeout_s:.0f} s; its log: "
+                               f"{child.log_path})\n")
             if child.popen is not None and child.popen.poll() is not None:
                 child.detail = f"exited with {child.popen.returncode} before it was ready"
                 child.exit_code = child.popen.returncode
