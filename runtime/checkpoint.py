@@ -22,22 +22,29 @@ import numpy as np
 
 from runtime.pairing import TOKEN_ENV
 
-SHM_DIR = Path("/dev/shm")
+#: where a launch keeps its files in shared memory; ``$CASSIE_SHM_DIR`` moves it (tests give
+#: each launch a folder of its own there, so they can tell what it left behind)
+SHM_ENV = "CASSIE_SHM_DIR"
+
+
+def shm_dir() -> Path:
+    """The folder of a launch's shared-memory files (``/dev/shm`` unless ``$CASSIE_SHM_DIR``)."""
+    return Path(os.environ.get(SHM_ENV) or "/dev/shm")
 
 
 def checkpoint_path(process: str) -> Path | None:
     """Where ``process`` keeps its state in this launch; None outside a supervised launch
     (no token: nothing to carry on from)."""
     token = os.environ.get(TOKEN_ENV)
-    if token is None or not SHM_DIR.is_dir():
+    if token is None or not shm_dir().is_dir():
         return None
-    return SHM_DIR / f"cassie-{token}-{process}.state"
+    return shm_dir() / f"cassie-{token}-{process}.state"
 
 
 def remove_checkpoints(token: int | str) -> None:
     """Delete a launch's files in shared memory (the supervisor, at shutdown): its state
     checkpoints and its succession locks (``runtime.succession``)."""
-    for p in SHM_DIR.glob(f"cassie-{token}-*"):
+    for p in shm_dir().glob(f"cassie-{token}-*"):
         try:
             p.unlink()
         except OSError:

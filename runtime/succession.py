@@ -30,7 +30,7 @@ import os
 import threading
 from pathlib import Path
 
-from runtime.checkpoint import SHM_DIR
+from runtime.checkpoint import shm_dir
 from runtime.pairing import TOKEN_ENV
 
 log = logging.getLogger(__name__)
@@ -53,9 +53,9 @@ for _name in ("pthread_mutex_lock", "pthread_mutex_unlock", "pthread_mutex_consi
 def lock_path(process: str, token: int | str | None = None) -> Path | None:
     """The lock of ``process`` in this launch (None outside a supervised launch)."""
     token = os.environ.get(TOKEN_ENV) if token is None else token
-    if token is None or not SHM_DIR.is_dir():
+    if token is None or not shm_dir().is_dir():
         return None
-    return SHM_DIR / f"cassie-{token}-{process}.alive"
+    return shm_dir() / f"cassie-{token}-{process}.alive"
 
 
 def _mapped(path: Path) -> tuple[mmap.mmap, int]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import shutil
 import signal
 import socket
 import threading
@@ -27,7 +28,7 @@ import pytest
 
 from lcmtypes import supervisor_status_t
 from runtime.bus import Bus
-from runtime.checkpoint import SHM_DIR
+from runtime.checkpoint import SHM_ENV, shm_dir
 from runtime.config import HW_CONFIG_DIR, load_profile
 from tests.conftest import cassie
 
@@ -67,7 +68,7 @@ def _one_cycle(k: int, way: str, profile_path: Path, logs: Path, rng: random.Ran
     profile = load_profile(profile_path)
     bus = Bus.for_profile(profile, source="cycle_test")
     status = bus.subscribe(profile.status_channel, supervisor_status_t)
-    shm_before = set(SHM_DIR.glob("cassie-*"))
+    shm_before = set(shm_dir().glob("cassie-*"))
     args = ["launch", str(profile_path), "--no-live", "--log", "--log-dir", str(logs / str(k))]
     if way == "duration":
         args += ["--duration", "2"]
@@ -116,7 +117,7 @@ def _one_cycle(k: int, way: str, profile_path: Path, logs: Path, rng: random.Ran
         except OSError:
             pass
     busy = [f"{h}:{p}" for h, p in udp_ports if not _port_free((h, p))]
-    shm_left = sorted(str(p) for p in set(SHM_DIR.glob("cassie-*")) - shm_before)
+    shm_left = sorted(str(p) for p in set(shm_dir().glob("cassie-*")) - shm_before)
     return {"way": way, "returncode": sup.returncode, "processes_seen": len(seen),
             "ready": ready, "seconds": round(stopped_s, 1), "orphans": orphans,
             "ports_busy": busy, "shm_left": shm_left,
@@ -127,6 +128,13 @@ def test_launch_stop_cycles_leave_no_orphans_ports_or_state_files(tmp_path, monk
     cycles = int(os.environ.get("CASSIE_CYCLES", "100"))
     port = random.randrange(20000, 60000, 10)
     monkeypatch.setenv("CASSIE_LCM_URL", f"udpm://239.255.76.67:{port}")
+    # the launches' shared-memory files in a folder of this test's own: what another launch
+    # on the machine leaves meanwhile is not counted against these
+    shm = Path("/dev/shm") / f"cassie-cycles-{os.getpid()}"
+    shm.mkdir(exist_ok=True)
+    monkeypatch.setenv(SHM_ENV, str(shm))
+    # ... and UDP ports of its own (an instance offset): "ports busy" must be this test's
+    monkeypatch.setenv("CASSIE_INSTANCE", str(random.randrange(50, 100)))
     profile_path = tmp_path / "cycles.yaml"
     profile_path.write_text(f"include: [{HW_CONFIG_DIR / 'sim.yaml'}]\nprofile: cycles\n"
                             f"launch: [{', '.join(PROCESSES)}]\n")
@@ -154,6 +162,7 @@ def test_launch_stop_cycles_leave_no_orphans_ports_or_state_files(tmp_path, monk
     if path := os.environ.get("CASSIE_CYCLES_JSON"):
         Path(path).write_text(json.dumps({"figures": figures, "cycles": results}, indent=1))
     print(json.dumps(figures, indent=1))
+    shutil.rmtree(shm, ignore_errors=True)
     bad = [r for r in results if r["orphans"] or r["ports_busy"] or r["shm_left"]]
     assert not bad, bad[:3]
     assert figures["not_ready_when_stopped_after_ready"] == 0, figures
