@@ -35,6 +35,7 @@ import select
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -212,8 +213,12 @@ class Supervisor:
         log_lcm: bool = False,
         dashboard: bool = False,
         check_first: bool = True,
+        screen: bool = False,
     ) -> None:
         self.profile = profile
+        #: each process's output also on this terminal, a line at a time with its name in
+        #: front (``ros2 launch``'s ``output='screen'``), as well as in its log file
+        self.screen = screen
         #: this launch's sim <-> bridge pairing token (runtime.pairing.link_token)
         self.link_token = secrets.randbits(32) | 1
         #: the processes sign their TIMING with it (runtime.pairing); it never goes on the bus
@@ -223,7 +228,7 @@ class Supervisor:
         self.log_dir = Path(log_dir) if log_dir else new_log_dir(profile.name)
         self.duration_s = duration_s
         self.out = out or sys.stdout
-        self.live_table = self.out.isatty() if live_table is None else live_table
+        self.live_table = (self.out.isatty() if live_table is None else live_table) and not screen
         self.extra_args = extra_args or []
         self.grace = shutdown_grace_s
         self.order = check_depends(profile)
@@ -404,9 +409,9 @@ class Supervisor:
         env = self._child_env()
         if ready_fd is not None:
             env[STANDBY_FD_ENV] = str(ready_fd)
-        return subprocess.Popen(
+        popen = subprocess.Popen(
             cmd,
-            stdout=child.log_file,
+            stdout=subprocess.PIPE if self.screen else child.log_file,
             stderr=subprocess.STDOUT,
             stdin=stdin,
             cwd=str(REPO_ROOT),
@@ -418,6 +423,22 @@ class Supervisor:
                 else self._all_cpus,  # `cassie run` pins itself to its host's CPUs
             ),
         )
+        if self.screen:
+            assert popen.stdout is not None and child.log_file is not None
+            threading.Thread(target=self._relay, args=(child.proc.name, popen.stdout,
+                                                        child.log_file),
+                             name=f"relay-{child.proc.name}", daemon=True).start()
+        return popen
+
+    def _relay(self, name: str, pipe: IO[bytes], log_file: IO[bytes]) -> None:
+        """A child's output, line by line, into its log file and onto the terminal."""
+        for line in iter(pipe.readline, b""):
+            try:
+                log_file.write(line)
+            except (ValueError, OSError):  # the launch is over and the file closed
+                pass
+            self.out.write(f"[{name}] {line.decode(errors='replace').rstrip()}\n")
+        pipe.close()
 
     # -- standbys ------------------------------------------------------------------------------
     def _keep_standbys(self, now: float) -> None:

@@ -38,6 +38,7 @@ def _cmd_launch(args: argparse.Namespace) -> int:
         live_table=False if args.no_live else None,
         log_lcm=args.log,
         dashboard=args.dashboard,
+        screen=args.screen,
     )
     return sup.run()
 
@@ -286,6 +287,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     launch.add_argument(
         "--dashboard", action="store_true", help="start the Rerun dashboard with the stack"
+    )
+    launch.add_argument(
+        "--screen", action="store_true",
+        help="every process's output on this terminal too, each line after its name (as "
+             "ros2 launch's output='screen'); it still goes to its log file",
     )
     launch.add_argument(
         "--no-live",

@@ -53,3 +53,14 @@ def test_a_process_of_a_running_launch_is_restarted_stopped_and_started_by_order
     logs = run("logs", "ticker", "--profile", profile)
     assert logs.returncode == 0 and logs.stdout.count("=== start") >= 3, logs.stdout
     assert str(tmp_path / "logs" / "ticker.log") in logs.stderr
+
+
+def test_screen_puts_each_process_output_on_the_terminal_and_in_its_log(
+        lcm_url: str, procs: list, tmp_path: Path) -> None:
+    sup = cassie("launch", str(PROFILES / "supervised.yaml"), "--screen", "--duration", "3",
+                 "--log-dir", str(tmp_path / "logs"))
+    procs.append(sup)
+    out, _ = sup.communicate(timeout=120)
+    assert "[crasher] crasher: failing on purpose" in out, out[-1500:]
+    assert "[ticker] " in out and "ticker: stopped -> starting" in out
+    assert "failing on purpose" in (tmp_path / "logs" / "crasher.log").read_text()
