@@ -248,7 +248,20 @@ def run_trial(
         if setup is not None:
             setup(h)
         t0 = time.perf_counter()
-        h.run_until(int(duration_s * 1e6), stop=lambda: judge.fall_t is not None)
+        # in half-second steps of sim time, with a progress bar and an ETA on a terminal
+        # (tqdm: off by itself when stderr is not one)
+        from tqdm import tqdm
+
+        end_us, step_us = int(duration_s * 1e6), 500_000
+        with tqdm(total=round(duration_s, 1), unit="sim s", desc=f"{name} seed {seed}",
+                  disable=None, leave=False, bar_format="{l_bar}{bar}| {n:.1f}/{total} sim s "
+                  "[{elapsed}<{remaining}]") as bar:
+            t_us = 0
+            while t_us < end_us and judge.fall_t is None:
+                nxt = min(t_us + step_us, end_us)
+                h.run_until(nxt, stop=lambda: judge.fall_t is not None)
+                bar.update((nxt - t_us) / 1e6)
+                t_us = nxt
         trial.wall_s = time.perf_counter() - t0
         h.close()
     return _verdict(trial, judge, launch)
