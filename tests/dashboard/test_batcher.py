@@ -269,3 +269,21 @@ def test_own_drops_are_shown(tmp_path: Path) -> None:
     assert out.scalars("/dashboard/received_total") == [1003.0]
     assert out.scalars("/dashboard/dropped/CASSIE_STATE") == [400.0]
     assert "/dashboard/dropped/DEPTH" not in out.rows  # only channels that dropped any
+
+
+def test_an_event_loops_rate_is_taken_over_a_second_not_one_window(tmp_path: Path) -> None:
+    # a 15 Hz loop reporting every 0.1 s: 1 or 2 ticks a window, some with none
+    msgs, total = [], 0
+    pattern = [2, 1, 2, 0, 2, 1, 2, 1, 2, 2]  # 15 ticks a second
+    for k in range(40):
+        m = fake_stack.timing(100_000 * k, "s3", "s3", k)
+        m.ticks = pattern[k % 10]
+        total += m.ticks
+        m.ticks_total, m.rate_hz = total, m.ticks / 0.1
+        m.header.send_mono_ns = T0 + k * 100_000_000
+        msgs.append(m.encode())
+    rec = _run(tmp_path, [{"TIMING": msgs}])
+    rates = rec.scalars("/timing/rate_hz/s3/s3")
+    assert len(rates) == 40
+    assert all(13.0 <= r <= 17.0 for r in rates[12:]), rates  # once a second is in view
+    assert 0.0 not in rates[12:]
