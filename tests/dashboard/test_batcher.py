@@ -70,7 +70,8 @@ def test_whole_stack_writes_every_view_entity(tmp_path: Path) -> None:
         for metric in ("rate_hz", "exec_ms", "lateness_ms", "deadline_misses"):
             assert f"/timing/{metric}/{proc}/{loop}" in rec.rows, (metric, proc, loop)
     exec_rows = rec.column("/timing/exec_ms/osc/tick", "Scalars:scalars")
-    assert exec_rows and all(len(r) == 3 for r in exec_rows)  # p50, p99, max per row
+    # p50, p99, max per row, and the loop's deadline beside them
+    assert exec_rows and all(len(r) == 4 and r[3] == 0.5 for r in exec_rows)
     for hop in ("state_to_torque", "sensor_to_applied", "state_to_plan", "depth_to_map",
                 "map_to_footholds", "depth_to_footholds"):
         vals = rec.scalars(f"/latency/{hop}_ms")

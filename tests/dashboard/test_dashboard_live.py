@@ -52,8 +52,10 @@ def test_headless_recording_of_a_short_run_has_every_view(
         f"profile: dash\ninclude: [{HW_CONFIG_DIR / 'hosts.yaml'}, "
         f"{HW_CONFIG_DIR / 'channels.yaml'}]\n"
         "processes:\n"
-        "  ticker: {host: nuc, module: tests.procs.ticker, rate_hz: 10, outputs: {out: command}}\n"
-        "launch: [ticker]\n"
+        # (named as one of the fake stack's processes: its per-loop panel gets their TIMING)
+        "  osc: {host: nuc, module: tests.procs.ticker, rate_hz: 10, deadline_ms: 1,\n"
+        "        outputs: {out: command}}\n"
+        "launch: [osc]\n"
     )
     proc = cassie("dashboard", "--save", str(out), "--duration", "60", "--profile", str(profile))
     procs.append(proc)
@@ -75,7 +77,7 @@ def test_headless_recording_of_a_short_run_has_every_view(
         "Robot, terrain, footholds and plan", "Elevation map", "S3 mask", "Loop rate (Hz)",
         "Execution time (ms)", "Lateness (ms)", "Deadline misses per window",
         "Hop latency (ms)", "MPFC solve (ms)", "OSC tick (ms)", "Dashboard load",
-        "Supervisor and gait states",
+        "Supervisor and gait states", "osc execution (ms)",  # one panel per loop as well
     }
     for name, origin in views.items():  # every view of the layout has data under its origin
         if origin != "/":

@@ -153,7 +153,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     collector.start()  # listen first: the model and viewer set-up below take a second or two
     try:
-        rec = _open_recording(args, build_blueprint())
+        loops = ([(n, n, prof.processes[n].deadline_ms) for n in prof.launch]
+                 if prof is not None else None)
+        rec = _open_recording(args, build_blueprint(loops=loops))
     except (RuntimeError, OSError) as exc:
         collector.stop()
         print(f"dashboard: cannot open the Rerun output: {exc}", file=sys.stderr)

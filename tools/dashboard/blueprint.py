@@ -16,7 +16,7 @@ ENTITY_ROOTS = {
     "maps/elevation": "the elevation map, top-down, coloured by height (+x right, +y up)",
     "maps/s3_mask": "the S3 safe-terrain mask (green safe, red unsafe, grey unknown)",
     "timing/rate_hz": "loop rate of each process/loop (TIMING)",
-    "timing/exec_ms": "execution time p50/p99/max per loop",
+    "timing/exec_ms": "execution time p50/p99/max per loop, and its deadline",
     "timing/lateness_ms": "lateness p50/p99/max per loop",
     "timing/deadline_misses": "deadline misses per reporting window per loop",
     "latency": "latency of each hop, from header send times matched by utime",
@@ -37,13 +37,25 @@ def _recent(seconds: float) -> list[rr.VisibleTimeRange]:
     ]
 
 
-def build_blueprint(window_s: float = 20.0) -> rrb.Blueprint:
-    """The default layout; time series show the last ``window_s`` seconds before the cursor."""
+def build_blueprint(window_s: float = 20.0,
+                    loops: list[tuple[str, str, float | None]] | None = None) -> rrb.Blueprint:
+    """The default layout; time series show the last ``window_s`` seconds before the cursor.
+    ``loops`` (process, loop, deadline ms): one execution-time panel per loop as well, its
+    deadline drawn and its y-range fixed to twice the deadline, so a start-up spike of
+    ~200 ms does not flatten a 2 kHz loop's 0.1 ms to a line at zero."""
     recent = _recent(window_s)
 
-    def series(origin: str, name: str, contents: str | list[str] = "$origin/**"
-               ) -> rrb.TimeSeriesView:
-        return rrb.TimeSeriesView(origin=origin, contents=contents, name=name, time_ranges=recent)
+    def series(origin: str, name: str, contents: str | list[str] = "$origin/**",
+               y_max: float | None = None) -> rrb.TimeSeriesView:
+        axis = rrb.ScalarAxis(range=(0.0, y_max), zoom_lock=False) if y_max else None
+        return rrb.TimeSeriesView(origin=origin, contents=contents, name=name, time_ranges=recent,
+                                  axis_y=axis)
+
+    per_loop = [  # (a process's loops together: its loop's name is its node's)
+        series(f"timing/exec_ms/{rr.escape_entity_path_part(p)}", f"{p} execution (ms)",
+               y_max=2.0 * d if d else None)
+        for p, d in dict((p, d) for p, _, d in (loops or [])).items()
+    ]
 
     left = rrb.Vertical(
         rrb.Spatial3DView(origin="world", name="Robot, terrain, footholds and plan"),
@@ -53,7 +65,7 @@ def build_blueprint(window_s: float = 20.0) -> rrb.Blueprint:
         ),
         row_shares=[2.0, 1.0],
     )
-    timing = rrb.Grid(
+    overview = rrb.Grid(
         series("timing/rate_hz", "Loop rate (Hz)"),
         series("timing/exec_ms", "Execution time (ms)"),
         series("timing/lateness_ms", "Lateness (ms)"),
@@ -65,7 +77,10 @@ def build_blueprint(window_s: float = 20.0) -> rrb.Blueprint:
             series("dashboard", "Dashboard load"),
         ),
         grid_columns=2,
+        name="All loops",
     )
+    timing = (rrb.Tabs(overview, rrb.Grid(*per_loop, grid_columns=2, name="Each loop"))
+              if per_loop else overview)
     lanes = rrb.StateTimelineView(
         origin="/",
         contents=["/supervisor/states/**", "/mpfc/gait"],
