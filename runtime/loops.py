@@ -43,7 +43,7 @@ from runtime.pairing import sign_timing, timing_key
 from runtime.port_buffer import PortInbox
 from runtime.scheduling import apply_scheduling, lock_memory
 from runtime.succession import Succession
-from runtime.timing import LoopTimer
+from runtime.timing import FOREIGN_CLOCK_NS, LoopTimer
 from runtime.udp import UdpReceiver, UdpSender, loss_from_env
 from runtime.validate import input_checks
 
@@ -107,11 +107,6 @@ def _utime(msg: Any) -> int:
 
 #: how long a UDP input port may stay taken before the runner gives up binding it
 BIND_WAIT_S = 1.0
-#: a trigger stamped further than this before its arrival (or after it) is timed from its
-#: arrival: its stamp is not a send time of this host's CLOCK_MONOTONIC (a replayed log, whose
-#: messages keep their recorded stamps: perception reported a lateness of 161,608 ms; or
-#: another host's clock)
-FOREIGN_CLOCK_NS = 1_000_000_000
 
 
 def publish_timing(bus: Bus, channel: str, msg: Any, key: bytes | None) -> None:

@@ -40,20 +40,40 @@ _ATTR_BYTES = 16  # sizeof(pthread_mutexattr_t): 4 / 8
 _PTHREAD_PROCESS_SHARED = 1
 _PTHREAD_MUTEX_ROBUST = 1
 
-_libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-for _name in ("pthread_mutex_lock", "pthread_mutex_unlock", "pthread_mutex_consistent",
-              "pthread_mutex_init", "pthread_mutexattr_init", "pthread_mutexattr_setpshared",
-              "pthread_mutexattr_setrobust"):
-    getattr(_libc, _name).argtypes = [ctypes.c_void_p] + (
-        [ctypes.c_int] if _name.startswith("pthread_mutexattr_set") else
-        [ctypes.c_void_p] if _name == "pthread_mutex_init" else [])
-    getattr(_libc, _name).restype = ctypes.c_int
+_NAMES = ("pthread_mutex_lock", "pthread_mutex_unlock", "pthread_mutex_consistent",
+          "pthread_mutex_init", "pthread_mutexattr_init", "pthread_mutexattr_setpshared",
+          "pthread_mutexattr_setrobust")
+
+
+def _load() -> ctypes.CDLL | None:
+    """The C library with the robust-mutex calls (glibc >= 2.34 has them in libc, older ones
+    in libpthread); None where neither has them: no succession lock, standbys wait for the
+    supervisor's ``go`` as before."""
+    for name in ("c", "pthread"):
+        path = ctypes.util.find_library(name)
+        if path is None:
+            continue
+        try:
+            lib = ctypes.CDLL(path, use_errno=True)
+            for fn in _NAMES:
+                f = getattr(lib, fn)
+                f.argtypes = [ctypes.c_void_p] + (
+                    [ctypes.c_int] if fn.startswith("pthread_mutexattr_set") else
+                    [ctypes.c_void_p] if fn == "pthread_mutex_init" else [])
+                f.restype = ctypes.c_int
+            return lib
+        except (OSError, AttributeError):
+            continue
+    return None
+
+
+_libc = _load()
 
 
 def lock_path(process: str, token: int | str | None = None) -> Path | None:
     """The lock of ``process`` in this launch (None outside a supervised launch)."""
     token = os.environ.get(TOKEN_ENV) if token is None else token
-    if token is None or not shm_dir().is_dir():
+    if token is None or _libc is None or not shm_dir().is_dir():
         return None
     return shm_dir() / f"cassie-{token}-{process}.alive"
 
@@ -65,7 +85,7 @@ def _mapped(path: Path) -> tuple[mmap.mmap, int]:
         mem = mmap.mmap(fd, _MUTEX_BYTES)
     finally:
         os.close(fd)
-    return mem, ctypes.addressof(ctypes.c_char.from_buffer(mem))
+    return mem, ctypes.addressof(ctypes.c_char.from_buffer(mem))  # (the map stays open)
 
 
 def create_lock(path: Path) -> None:
@@ -78,6 +98,7 @@ def create_lock(path: Path) -> None:
     finally:
         os.close(fd)
     mem, addr = _mapped(tmp)
+    assert _libc is not None  # (lock_path gave no path without it)
     attr = ctypes.create_string_buffer(_ATTR_BYTES)
     for rc in (_libc.pthread_mutexattr_init(attr),
                _libc.pthread_mutexattr_setpshared(attr, _PTHREAD_PROCESS_SHARED),
@@ -103,6 +124,7 @@ class Succession:
         self.ended = threading.Event()  # watch(): the holder stopped in order; hold(): held
         self._release = threading.Event()
         self._thread: threading.Thread | None = None
+        self.error = ""  # why the lock could not be used, if it could not
 
     @classmethod
     def for_process(cls, process: str) -> Succession | None:
@@ -126,7 +148,16 @@ class Succession:
         return rc
 
     def _keep(self, watching: bool, wake_fd: int) -> None:
-        rc = self._lock()
+        try:
+            rc = self._lock()
+        except OSError as exc:  # a broken lock (ENOTRECOVERABLE...): run without it
+            self.error = str(exc)
+            log.warning("succession lock %s unusable (%s): a standby learns of a crash only "
+                        "from the supervisor", self.path, exc)
+            self.ended.set()
+            if wake_fd >= 0:
+                os.write(wake_fd, b"e")
+            return
         if watching and rc != errno.EOWNERDEAD:
             _libc.pthread_mutex_unlock(self._addr)  # stopped in order: not ours to take over
             self.ended.set()
@@ -142,7 +173,7 @@ class Succession:
         """Take the lock for this (running) copy; False if another holds it past the
         timeout (a copy already running: the caller should not run)."""
         self._start(False, -1)
-        return self.ended.wait(timeout_s)
+        return self.ended.wait(timeout_s)  # (True too when the lock is broken: run without)
 
     def watch(self, wake_fd: int) -> None:
         """Wait for the lock in the background (a standby); a byte on ``wake_fd`` when it

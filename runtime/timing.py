@@ -18,6 +18,12 @@ import numpy as np
 
 from lcmtypes import loop_timing_t
 
+#: a trigger stamped further than this before its arrival (or after it) is timed from its
+#: arrival: its stamp is not a send time of this host's CLOCK_MONOTONIC (a replayed log, whose
+#: messages keep their recorded stamps: perception reported a lateness of 161,608 ms; or
+#: another host's clock). ``cassie report`` leaves hop pairs this far apart out, too.
+FOREIGN_CLOCK_NS = 1_000_000_000
+
 _NS_PER_MS = 1e6
 
 

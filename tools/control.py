@@ -85,11 +85,12 @@ def cmd_order(argv: list[str]) -> int:
     msg.process, msg.order = args.process, args.order
     bus.publish(orders_ch, msg)
     t0 = time.monotonic()
+    first_seq = before.header.seq  # only a status sent after the order says it is done
     names = list(procs) if args.process == "*" else [args.process]
     want = {"stop": ("stopped",), "start": ("ready",), "restart": ("ready",)}[args.order]
     while time.monotonic() - t0 < args.timeout:
         now = _status(bus, status_ch, 1.5)
-        if now is None:
+        if now is None or now.header.seq <= first_seq + 1:
             continue
         cur = {q.name: q for q in now.processes}
         done = all(cur[n].state in want and (args.order != "restart"

@@ -20,7 +20,7 @@ from typing import Any
 
 import yaml
 
-from runtime.config import load_profile
+from runtime.config import load_profile, load_yaml
 from runtime.errors import ConfigError
 
 SEP = ":="
@@ -62,6 +62,11 @@ def write_overlay(profile_path: Path, items: list[str], folder: Path) -> Path:
     base = load_profile(profile_path)
     overlay: dict[str, Any] = {"include": [str(base.path)], "profile": base.name,
                                "mode": base.mode, "launch": list(base.launch)}
+    # the keys a profile takes from its own file only (the sections merge through include)
+    top = load_yaml(Path(base.path))
+    for key in ("description", "timing_report_hz", "rtf", "supervisor"):
+        if key in top:
+            overlay[key] = top[key]
     procs: dict[str, dict[str, Any]] = {}
     gains_docs: dict[str, tuple[Path, dict[str, Any]]] = {}
     for path, value in parse(items):
@@ -101,7 +106,7 @@ def write_overlay(profile_path: Path, items: list[str], folder: Path) -> Path:
                               f"{head}.params.NAME or {head}.gains.A.B")
     folder.mkdir(parents=True, exist_ok=True)
     for head, (src, doc) in gains_docs.items():
-        out = folder / "gains" / src.name
+        out = folder / "gains" / f"{head}.{src.name}"  # (two processes may share a file name)
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(f"# {src} with the command line's overrides\n"
                        + yaml.safe_dump(doc, sort_keys=False))

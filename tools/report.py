@@ -27,7 +27,7 @@ import numpy as np
 import lcmtypes
 from runtime.config import HW_CONFIG_DIR, _channel, load_yaml
 from runtime.errors import ConfigError
-from runtime.loops import FOREIGN_CLOCK_NS
+from runtime.timing import FOREIGN_CLOCK_NS
 from tools.benchmarks.common import write_json
 
 PCTS = (50.0, 99.0, 99.9)

@@ -64,3 +64,22 @@ def test_an_answer_to_a_resent_datagram_is_no_sample() -> None:
 def test_bounds_are_checked() -> None:
     with pytest.raises(ValueError, match="0 < min <= max"):
         ResendTimer(0.02, 0.01)
+
+
+def test_a_round_trip_grown_past_the_timeout_for_good_backs_it_off() -> None:
+    timer = ResendTimer(0.001, 0.01)
+    t = 0.0
+    for _ in range(100):
+        t = answer_after(timer, t, 0.0005)  # ~0.5 ms: the floor, 1 ms
+    assert timer.timeout_s == pytest.approx(0.001)
+    resent = 0
+    for _ in range(30):  # now every answer takes 3 ms
+        timer.sent(t)
+        if timer.timeout_s < 0.003:  # it expires before the answer: sent again
+            timer.expired()
+            resent += 1
+        timer.answered(t + 0.003)
+        t += 0.003
+    assert resent <= 9  # backed off after runs of three, not a resend on every cycle
+    timer.sent(t)
+    assert timer.timeout_s > 0.003
