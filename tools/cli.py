@@ -173,6 +173,14 @@ def _standby(node: object, proc: Any, log: logging.Logger) -> tuple[bool, Any]:
         for note in rt_priority(min(int(prio) + 1, 99)):
             if "failed" in note:
                 log.warning("standby: %s", note)
+    elif succession is not None and getattr(proc, "nice", None) is not None:
+        # ... and a process of the normal scheduler at its own nice: the OSC's standby, woken
+        # at nice 19 beside the dying OSC's teardown at nice -20, ran 64.7 ms after the kill
+        # (perf sched), the bridge's watchdog damping all the while
+        try:
+            os.setpriority(os.PRIO_PROCESS, 0, int(proc.nice))
+        except OSError as exc:
+            log.warning("standby: nice %s: failed (%s)", proc.nice, exc.strerror)
     if succession is not None:
         wake_r, wake_w = os.pipe()
         succession.watch(wake_w)
