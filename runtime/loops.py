@@ -39,7 +39,7 @@ from runtime.bus import Bus, Subscription
 from runtime.checkpoint import StateCheckpoint, checkpoint_path
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.node import HEALTH_WARNING, Node, OutputGates, SlotGate, TickGuard
-from runtime.pairing import sign_timing, timing_key
+from runtime.pairing import publish_timing, timing_key
 from runtime.port_buffer import PortInbox
 from runtime.scheduling import apply_scheduling, lock_memory
 from runtime.succession import Succession
@@ -107,16 +107,6 @@ def _utime(msg: Any) -> int:
 
 #: how long a UDP input port may stay taken before the runner gives up binding it
 BIND_WAIT_S = 1.0
-
-
-def publish_timing(bus: Bus, channel: str, msg: Any, key: bytes | None) -> None:
-    """A TIMING message, signed with the launch's timing key when there is one (the
-    supervisor takes no other: ``runtime.pairing``)."""
-    if key is None:
-        bus.publish(channel, msg)
-        return
-    bus.stamp(channel, msg)
-    bus.publish(channel, sign_timing(msg, key))
 
 
 class LiveRunner:

@@ -89,3 +89,13 @@ def sign_timing(msg: Any, key: bytes) -> bytes:
 def timing_signed(data: bytes, key: bytes) -> bool:
     """Whether an encoded loop_timing_t carries the tag of ``key`` (constant-time compare)."""
     return len(data) > TAG_BYTES and hmac.compare_digest(_tag(key, data), data[-TAG_BYTES:])
+
+
+def publish_timing(bus: Any, channel: str, msg: Any, key: bytes | None) -> None:
+    """A TIMING message on ``bus`` (a ``runtime.bus.Bus``), signed with the launch's timing
+    key when there is one: the supervisor takes no other."""
+    if key is None:
+        bus.publish(channel, msg)
+        return
+    bus.stamp(channel, msg)
+    bus.publish(channel, sign_timing(msg, key))

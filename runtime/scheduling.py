@@ -71,14 +71,14 @@ def pin_to_supervisor_host(profile: Any) -> tuple[int, ...] | None:
     return cpus
 
 
-def rt_priority(prio: int | None) -> list[str]:
-    """SCHED_FIFO at ``prio`` for the calling thread (and the threads it starts); one line
-    saying what happened."""
+def rt_priority(prio: int | None, pid: int = 0) -> list[str]:
+    """SCHED_FIFO at ``prio`` for the calling thread (and the threads it starts), or for the
+    main thread of ``pid``; one line saying what happened."""
     notes = []
     if prio is not None:
         try:
             os.sched_setscheduler(
-                0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(int(prio))
+                pid, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(int(prio))
             )
             notes.append(f"SCHED_FIFO priority {prio}: applied")
         except (OSError, AttributeError) as exc:

@@ -51,7 +51,7 @@ from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
 from runtime.pairing import TIMING_KEY_ENV, TOKEN_ENV, timing_signed
-from runtime.scheduling import describe, pin_to_supervisor_host, process_cpu_s
+from runtime.scheduling import describe, pin_to_supervisor_host, process_cpu_s, rt_priority
 from runtime.succession import create_lock, lock_path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -562,11 +562,9 @@ class Supervisor:
             try:
                 if child.proc.nice is not None:
                     os.setpriority(os.PRIO_PROCESS, child.pid, child.proc.nice)
-                if child.proc.rt_priority is not None:
-                    os.sched_setscheduler(child.pid, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK,
-                                          os.sched_param(child.proc.rt_priority))
             except OSError:
                 pass
+            rt_priority(child.proc.rt_priority, child.pid)  # (a failure leaves it at its nice)
 
     def _signal_group(self, child: Child, sig: int) -> None:
         if child.popen is None:

@@ -233,8 +233,7 @@ def _started(proc: object, profile: object) -> None:
     supervisor's sign that it started, as a node's runner sends after its setup."""
     from lcmtypes import loop_timing_t
     from runtime.bus import Bus
-    from runtime.loops import publish_timing
-    from runtime.pairing import timing_key
+    from runtime.pairing import publish_timing, timing_key
 
     msg = loop_timing_t()
     msg.process = msg.loop = msg.header.source = proc.name  # type: ignore[attr-defined]

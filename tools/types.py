@@ -45,11 +45,16 @@ def _tool(name: str) -> str:
     return found
 
 
-def lcm_jar() -> Path:
-    """LCM's own Java library (installed with the lcm wheel, beside its lcm-spy)."""
+def _lcm_prefix() -> Path:
+    """Where the lcm wheel put its files (``share/java``, ``include``, ``lib``)."""
     import lcm
 
-    for base in (Path(lcm.__file__).resolve().parents[1], Path(sys.prefix)):
+    return Path(lcm.__file__).resolve().parents[1]
+
+
+def lcm_jar() -> Path:
+    """LCM's own Java library (installed with the lcm wheel, beside its lcm-spy)."""
+    for base in (_lcm_prefix(), Path(sys.prefix)):
         jar = base / "share" / "java" / "lcm.jar"
         if jar.exists():
             return jar
@@ -102,9 +107,7 @@ def build_cpp(out: Path) -> Path:
 
 def lcm_include_and_lib() -> tuple[Path, Path]:
     """LCM's C/C++ headers and library folder, as the lcm wheel installs them."""
-    import lcm
-
-    base = Path(lcm.__file__).resolve().parents[1]
+    base = _lcm_prefix()
     inc, lib = base / "include", base / "lib"
     if not (inc / "lcm" / "lcm-cpp.hpp").exists() or not any(lib.glob("liblcm.so*")):
         raise SystemExit(f"LCM's C++ headers or library not found under {base}")
