@@ -22,3 +22,5 @@ from .robot_state_t import robot_state_t as robot_state_t
 from .supervisor_orders_t import supervisor_orders_t as supervisor_orders_t
 from .supervisor_status_t import supervisor_status_t as supervisor_status_t
 from .torque_command_t import torque_command_t as torque_command_t
+from .deputy_orders_t import deputy_orders_t as deputy_orders_t
+from .deputy_status_t import deputy_status_t as deputy_status_t

@@ -186,7 +186,7 @@ class loop_timing_t(object):
         self.auth_len = 0
         """
         HMAC-SHA256 (its first 16 bytes) of the encoded message before it, keyed with the
-        launch's timing key (runtime.pairing.sign_timing): the supervisor takes a process's
+        launch's timing key (runtime.pairing.sign_message): the supervisor takes a process's
         TIMING only with it. Empty (auth_len 0) outside a supervised launch.
         LCM Type: int8_t
         """

@@ -10,11 +10,11 @@ import struct
 class process_status_t(object):
     """ The supervisor's view of one process. """
 
-    __slots__ = ["name", "host", "state", "required", "pid", "restarts", "exit_code", "cpu_percent", "cpu_s", "rss_mb", "loop_rate_hz", "deadline_misses", "last_message_age_s", "health", "status", "affinity", "priority", "detail"]
+    __slots__ = ["name", "host", "state", "required", "pid", "restarts", "crashes", "exit_code", "cpu_percent", "cpu_s", "rss_mb", "loop_rate_hz", "deadline_misses", "last_message_age_s", "health", "status", "affinity", "priority", "detail"]
 
-    __typenames__ = ["string", "string", "string", "boolean", "int32_t", "int32_t", "int32_t", "double", "double", "double", "double", "int64_t", "double", "int8_t", "string", "string", "string", "string"]
+    __typenames__ = ["string", "string", "string", "boolean", "int32_t", "int32_t", "int32_t", "int32_t", "double", "double", "double", "double", "int64_t", "double", "int8_t", "string", "string", "string", "string"]
 
-    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None]
+    __dimensions__ = [None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None, None]
 
     def __init__(self):
         self.name = ""
@@ -33,8 +33,14 @@ class process_status_t(object):
         """ LCM Type: int32_t """
         self.restarts = 0
         """ LCM Type: int32_t """
-        self.exit_code = 0
+        self.crashes = 0
         """ LCM Type: int32_t """
+        self.exit_code = 0
+        """
+        exits with an error or a signal it was not ordered to take
+        LCM Type: int32_t
+        """
+
         self.cpu_percent = 0.0
         """
         last exit code (negative: killed by that signal)
@@ -109,7 +115,7 @@ class process_status_t(object):
         buf.write(struct.pack('>I', len(__state_encoded)+1))
         buf.write(__state_encoded)
         buf.write(b"\0")
-        buf.write(struct.pack(">biiiddddqdb", self.required, self.pid, self.restarts, self.exit_code, self.cpu_percent, self.cpu_s, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s, self.health))
+        buf.write(struct.pack(">biiiiddddqdb", self.required, self.pid, self.restarts, self.crashes, self.exit_code, self.cpu_percent, self.cpu_s, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s, self.health))
         __status_encoded = self.status.encode('utf-8')
         buf.write(struct.pack('>I', len(__status_encoded)+1))
         buf.write(__status_encoded)
@@ -147,7 +153,7 @@ class process_status_t(object):
         __state_len = struct.unpack('>I', buf.read(4))[0]
         self.state = buf.read(__state_len)[:-1].decode('utf-8', 'replace')
         self.required = bool(struct.unpack('b', buf.read(1))[0])
-        self.pid, self.restarts, self.exit_code, self.cpu_percent, self.cpu_s, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s, self.health = struct.unpack(">iiiddddqdb", buf.read(61))
+        self.pid, self.restarts, self.crashes, self.exit_code, self.cpu_percent, self.cpu_s, self.rss_mb, self.loop_rate_hz, self.deadline_misses, self.last_message_age_s, self.health = struct.unpack(">iiiiddddqdb", buf.read(65))
         __status_len = struct.unpack('>I', buf.read(4))[0]
         self.status = buf.read(__status_len)[:-1].decode('utf-8', 'replace')
         __affinity_len = struct.unpack('>I', buf.read(4))[0]
@@ -161,7 +167,7 @@ class process_status_t(object):
     @staticmethod
     def _get_hash_recursive(parents):
         if process_status_t in parents: return 0
-        tmphash = (0xfeed6a7740cd004b) & 0xffffffffffffffff
+        tmphash = (0x8783727e57ab8c8c) & 0xffffffffffffffff
         tmphash  = (((tmphash<<1)&0xffffffffffffffff) + (tmphash>>63)) & 0xffffffffffffffff
         return tmphash
     _packed_fingerprint = None

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import importlib.util
+import ipaddress
 import os
 from pathlib import Path
 from typing import Any
@@ -397,7 +398,7 @@ def load_profile(path: str | Path) -> Profile:
         hc = _Checker(file)
         h = hc.mapping(value, f"hosts.{hname}")
         hc.known_keys(h, f"hosts.{hname}",
-                      {"address", "description", "lcm_port_offset", "cpus"})
+                      {"address", "description", "lcm_port_offset", "cpus", "deputy"})
         cpus = h.get("cpus")
         if cpus is not None and (
             not isinstance(cpus, list) or not cpus
@@ -413,10 +414,12 @@ def load_profile(path: str | Path) -> Profile:
             hc.number(h, f"hosts.{hname}", "lcm_port_offset", default=0, lo=0,
                       hi=INSTANCE_PORT_STEP - 1, integer=True),
             tuple(cpus) if cpus else None,
+            hc.boolean(h, f"hosts.{hname}", "deputy", default=False),
         )
 
     channels = {
-        cname: _channel(cname, value, file) for cname, (value, file) in sections["channels"].items()
+        cname: _channel(cname, value, file, hosts)
+        for cname, (value, file) in sections["channels"].items()
     }
     for cname, (_, file) in sections["channels"].items():
         scope = channels[cname].scope
@@ -465,7 +468,8 @@ def load_profile(path: str | Path) -> Profile:
     domains, channel_domains = _domains(url, host_buses, hosts, channels, processes, launch)
     sup = ck.mapping(data.get("supervisor") or {}, "supervisor")
     ck.known_keys(sup, "supervisor",
-                  {"status_channel", "orders_channel", "timing_channel", "host"})
+                  {"status_channel", "orders_channel", "timing_channel", "host",
+                   "deputy_orders_channel", "deputy_status_channel"})
     sup_host = ck.string(sup, "supervisor", "host", default="laptop" if "laptop" in hosts else "",
                          choices=tuple(sorted(hosts)) or None) if hosts else ""
     # Relative paths in params (terrains, ...) resolve against hw_config/ when the profile builds
@@ -487,6 +491,10 @@ def load_profile(path: str | Path) -> Profile:
         status_channel=ck.string(sup, "supervisor", "status_channel", default="SUPERVISOR_STATUS"),
         orders_channel=ck.string(sup, "supervisor", "orders_channel", default="SUPERVISOR_ORDERS"),
         timing_channel=ck.string(sup, "supervisor", "timing_channel", default="TIMING"),
+        deputy_orders_channel=ck.string(sup, "supervisor", "deputy_orders_channel",
+                                        default="DEPUTY_ORDERS"),
+        deputy_status_channel=ck.string(sup, "supervisor", "deputy_status_channel",
+                                        default="DEPUTY_STATUS"),
         domains=domains,
         channel_domains=channel_domains,
         rtf=rtf,
@@ -587,7 +595,18 @@ def _blame_override(
     return exc
 
 
-def _channel(cname: str, value: Any, file: Path) -> ChannelConfig:
+def _is_ip(text: str) -> bool:
+    try:
+        ipaddress.IPv4Address(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _channel(cname: str, value: Any, file: Path,
+             hosts: dict[str, HostConfig] | None = None) -> ChannelConfig:
+    """One entry of ``channels``; a UDP link's HOST may name a host of hosts.yaml (its
+    address: the NUC's and the target PC's, as on the robot)."""
     ck = _Checker(file)
     key = f"channels.{cname}"
     if isinstance(value, str):
@@ -608,6 +627,11 @@ def _channel(cname: str, value: Any, file: Path) -> ChannelConfig:
                 f"{key}.udp", f"{addr!r} is not HOST:PORT", allowed="e.g. 127.0.0.1:25000"
             )
         port = int(port_s) + INSTANCE_PORT_STEP * instance()
+        if hosts and host in hosts:
+            host = hosts[host].address
+        elif hosts is not None and not _is_ip(host):
+            raise ck.fail(f"{key}.udp", f"{host!r} is neither a host of hosts.yaml nor an IPv4 "
+                          "address", allowed=", ".join(sorted(hosts or {})) + " or a.b.c.d")
         return ChannelConfig(cname, f"udp:{host}:{port}", udp=(host, port))
     name = ck.string(d, key, "name")
     if not name.replace("_", "").isalnum():

@@ -100,6 +100,9 @@ class HostConfig:
     #: the CPUs that stand in for this host's computer: every process on the host is pinned
     #: to them (unless it sets its own cpu_affinity); None: anywhere
     cpus: tuple[int, ...] | None = None
+    #: its processes are started by the deputy on that host (``cassie deputy --host NAME``,
+    #: ``runtime.deputy``), not by the supervisor itself: procman's sheriff/deputy split
+    deputy: bool = False
 
 
 @dataclass(frozen=True)
@@ -120,6 +123,8 @@ class Profile:
     status_channel: str = "SUPERVISOR_STATUS"
     orders_channel: str = "SUPERVISOR_ORDERS"
     timing_channel: str = "TIMING"
+    deputy_orders_channel: str = "DEPUTY_ORDERS"
+    deputy_status_channel: str = "DEPUTY_STATUS"
     #: LCM domain name ("network", host names) -> URL; empty: everything on ``lcm_url``
     domains: dict[str, str] = field(default_factory=dict)
     #: LCM channel name -> its domain (for the launched processes); unlisted: "network"

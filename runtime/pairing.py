@@ -77,17 +77,19 @@ def _tag(key: bytes, data: bytes | bytearray | memoryview) -> bytes:
     return hmac.digest(key, memoryview(data)[:-TAG_BYTES], hashlib.sha256)[:TAG_BYTES]
 
 
-def sign_timing(msg: Any, key: bytes) -> bytes:
-    """A loop_timing_t encoded with its ``auth``: the tag of ``key`` over the bytes before it
-    (the message is encoded with a zeroed tag of the right length, then the tag written in)."""
+def sign_message(msg: Any, key: bytes) -> bytes:
+    """A message whose last fields are ``int8_t auth_len; byte auth[auth_len]`` (TIMING, the
+    deputies' orders and status) encoded with its ``auth``: the tag of ``key`` over the bytes
+    before it (encoded with a zeroed tag of the right length, then the tag written in)."""
     msg.auth_len, msg.auth = TAG_BYTES, bytes(TAG_BYTES)
     data = bytearray(msg.encode())
     data[-TAG_BYTES:] = _tag(key, data)
     return bytes(data)
 
 
-def timing_signed(data: bytes, key: bytes) -> bool:
-    """Whether an encoded loop_timing_t carries the tag of ``key`` (constant-time compare)."""
+def message_signed(data: bytes, key: bytes) -> bool:
+    """Whether an encoded message (see ``sign_message``) carries the tag of ``key``
+    (constant-time compare)."""
     return len(data) > TAG_BYTES and hmac.compare_digest(_tag(key, data), data[-TAG_BYTES:])
 
 
@@ -98,4 +100,4 @@ def publish_timing(bus: Any, channel: str, msg: Any, key: bytes | None) -> None:
         bus.publish(channel, msg)
         return
     bus.stamp(channel, msg)
-    bus.publish(channel, sign_timing(msg, key))
+    bus.publish(channel, sign_message(msg, key))

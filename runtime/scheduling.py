@@ -57,11 +57,11 @@ def lock_memory() -> str:
         return f"memory lock failed ({exc})"
 
 
-def pin_to_supervisor_host(profile: Any) -> tuple[int, ...] | None:
+def pin_to_supervisor_host(profile: Any, host: str | None = None) -> tuple[int, ...] | None:
     """Pin this process (best-effort) to the CPUs of the host the supervisor and the tools
-    stand on (``profile.supervisor_host``: the laptop), never to the NUC's; returns those
-    CPUs (None when that host names none), for the helpers to be pinned to as well."""
-    home = profile.hosts.get(profile.supervisor_host)
+    stand on (``profile.supervisor_host``: the laptop; a deputy: ``host``), never to the
+    NUC's; returns those CPUs (None when that host names none), for the helpers too."""
+    home = profile.hosts.get(host or profile.supervisor_host)
     cpus = home.cpus if home is not None else None
     if cpus:
         try:
@@ -89,6 +89,14 @@ def rt_priority(prio: int | None, pid: int = 0) -> list[str]:
                 "`ulimit -r`)"
             )
     return notes
+
+
+def normal_priority() -> None:
+    """Back to the normal scheduler (from ``rt_priority``), best-effort."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (OSError, AttributeError):
+        pass
 
 
 def describe(pid: int) -> str:

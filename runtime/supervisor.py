@@ -30,7 +30,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
-import secrets
+import secrets as _secrets
 import select
 import signal
 import subprocess
@@ -50,7 +50,7 @@ from runtime.checkpoint import remove_checkpoints
 from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
-from runtime.pairing import TIMING_KEY_ENV, TOKEN_ENV, timing_signed
+from runtime.pairing import TIMING_KEY_ENV, TOKEN_ENV, message_signed
 from runtime.scheduling import describe, pin_to_supervisor_host, process_cpu_s, rt_priority
 from runtime.succession import create_lock, lock_path
 
@@ -181,11 +181,16 @@ class Child:
     standby_pipe: int = -1  # where the spare says it is set up (non-blocking read end)
     standby_ready: bool = False
     takeovers: int = 0  # crashes answered by the standby
+    #: the host whose deputy runs it (``runtime.deputy``); "": this supervisor forks it
+    remote: str = ""
+    want: bool = False  # (remote) wanted running
+    run_id: int = 0  # (remote, and a deputy's own record) a new one restarts it
+    remote_pid: int = 0  # (remote) its pid, from its deputy's status
     _share: CpuShare = field(default_factory=CpuShare)
 
     @property
     def pid(self) -> int:
-        return self.popen.pid if self.popen is not None else 0
+        return self.popen.pid if self.popen is not None else self.remote_pid
 
     def kids(self, ps: psutil.Process) -> list[psutil.Process]:
         """The process's live descendants (a depth renderer, a viewer it started)."""
@@ -195,6 +200,8 @@ class Child:
             return []
 
     def alive(self) -> bool:
+        if self.remote:
+            return self.remote_pid > 0 and self.state in ("starting", "ready")
         return self.popen is not None and self.popen.poll() is None
 
 
@@ -214,15 +221,32 @@ class Supervisor:
         dashboard: bool = False,
         check_first: bool = True,
         screen: bool = False,
+        hosts: tuple[str, ...] | None = None,
+        secrets: tuple[int, bytes] | None = None,
     ) -> None:
+        """``hosts``: run only the profile's processes on these hosts (a deputy's own);
+        ``secrets``: the launch's (pairing token, timing key) when a deputy serves it."""
         self.profile = profile
         #: each process's output also on this terminal, a line at a time with its name in
         #: front (``ros2 launch``'s ``output='screen'``), as well as in its log file
         self.screen = screen
+        #: a deputy's supervisor: only its host's processes, orders from the deputy
+        self.host_only = hosts is not None
+        #: the hosts whose deputies run their processes (hosts.yaml ``deputy: true``)
+        remote = () if hosts is not None else tuple(
+            h for h, hc in profile.hosts.items() if hc.deputy)
+        self.launch_name = _secrets.token_hex(8)
+        deputy_key = None
+        if remote:  # the secrets then follow from the hosts' shared key (runtime.deputy)
+            from runtime.deputy import deputy_key as _deputy_key
+            from runtime.deputy import launch_secrets
+
+            deputy_key = _deputy_key()
+            secrets = launch_secrets(deputy_key, self.launch_name)
         #: this launch's sim <-> bridge pairing token (runtime.pairing.link_token)
-        self.link_token = secrets.randbits(32) | 1
+        self.link_token = secrets[0] if secrets else _secrets.randbits(32) | 1
         #: the processes sign their TIMING with it (runtime.pairing); it never goes on the bus
-        self.timing_key = secrets.token_bytes(16)
+        self.timing_key = secrets[1] if secrets else _secrets.token_bytes(16)
         #: build every node once (``cassie check``) before anything starts
         self.check_first = check_first
         self.log_dir = Path(log_dir) if log_dir else new_log_dir(profile.name)
@@ -231,12 +255,16 @@ class Supervisor:
         self.live_table = (self.out.isatty() if live_table is None else live_table) and not screen
         self.extra_args = extra_args or []
         self.grace = shutdown_grace_s
-        self.order = check_depends(profile)
-        self.children = {name: Child(profile.processes[name]) for name in self.order}
+        self.order = [n for n in check_depends(profile)
+                      if hosts is None or profile.processes[n].host in hosts]
+        self.children = {name: Child(profile.processes[name],
+                                     remote=h if (h := profile.processes[name].host) in remote
+                                     else "")
+                         for name in self.order}
         self.bus = Bus.for_profile(profile, source="supervisor", recv_buf_size=1 << 20)
         self._all_cpus = tuple(sorted(os.sched_getaffinity(0)))  # children start unpinned
         # the supervisor runs "on the laptop", as procman's sheriff would
-        self.home_cpus = pin_to_supervisor_host(profile)
+        self.home_cpus = pin_to_supervisor_host(profile, hosts[0] if hosts else None)
         if log_lcm:
             # every domain (each host's bus and the network) into one log, read in batches so
             # that recording never wakes anyone's CPU per message (tools/logger.py)
@@ -275,7 +303,15 @@ class Supervisor:
         self.cpu_percent = 0.0
         self._last_sample = 0.0
         self.bus.subscribe_raw(profile.timing_channel, self._on_timing)
-        self.bus.subscribe_raw(profile.orders_channel, self._on_order)
+        #: orders come to the supervisor only (a deputy takes the supervisor's orders)
+        if hosts is None:
+            self.bus.subscribe_raw(profile.orders_channel, self._on_order)
+        self.deputies = None
+        if remote:
+            from runtime.deputy import DeputyLink
+
+            assert deputy_key is not None
+            self.deputies = DeputyLink(self, deputy_key, self.launch_name)
 
     def _add_helper(self, name: str, command: list[str], first: bool = False,
                     nice: int | None = None, cpus: tuple[int, ...] | None = None,
@@ -316,16 +352,18 @@ class Supervisor:
             self._refuse("TIMING", f"malformed ({type(exc).__name__})")
             return
         child = self.children.get(msg.process)
+        if child is None and self.host_only and msg.process in self.profile.processes:
+            return  # a process of this launch on another host (a deputy hears them all)
         if child is None or msg.header.source != child.proc.name:
             self._refuse("TIMING", f"from {msg.header.source!r} for process {msg.process!r}, "
                          "not one this supervisor runs")
             return
-        if not timing_signed(data, self.timing_key):
+        if not message_signed(data, self.timing_key):
             self._refuse("TIMING", f"for process {msg.process!r} without this launch's "
                          "signature (another launch's, or spoofed)")
             return
-        if child.popen is None:  # a last report of a process being stopped: nothing to take
-            return
+        if child.popen is None and not (child.remote and child.want):
+            return  # a last report of a process being stopped: nothing to take
         child.last_msg_ns = time.monotonic_ns()
         if msg.ticks or msg.window_s > 0.5:  # not the set-up heartbeat's empty window
             child.loop_rate_hz = msg.rate_hz
@@ -359,6 +397,8 @@ class Supervisor:
                 child.state = "stopped"
             elif msg.order == "start" and child.alive():
                 child.detail = "start ordered while running: ignored (order restart instead)"
+            elif child.remote and self.deputies is not None:  # its deputy counts a restart
+                self.deputies.start(child)
             elif msg.order in ("start", "restart"):
                 if msg.order == "restart" and child.popen is not None:
                     self._stop_child(child)
@@ -448,7 +488,7 @@ class Supervisor:
             return
         for name in self.order:
             c = self.children[name]
-            if not c.proc.restart.standby or c.command is not None:
+            if not c.proc.restart.standby or c.command is not None or c.remote:
                 continue
             if c.standby is not None and c.standby.poll() is not None:
                 self.out.write(f"{name}: its standby exited ({c.standby.returncode}); "
@@ -480,7 +520,7 @@ class Supervisor:
         copy holds it, the standby wakes the moment that copy dies, ~30-50 ms before its exit
         shows here."""
         for name, c in self.children.items():
-            if c.proc.restart.standby and c.command is None:
+            if c.proc.restart.standby and c.command is None and not c.remote:
                 path = lock_path(name, self.link_token)
                 if path is None:
                     return
@@ -540,6 +580,9 @@ class Supervisor:
 
     def _start_child(self, child: Child) -> None:
         self.log_dir.mkdir(parents=True, exist_ok=True)
+        if child.remote and self.deputies is not None:
+            self.deputies.start(child)
+            return
         child.log_path = self.log_dir / f"{child.proc.name}.log"
         if child.log_file is None:
             child.log_file = open(child.log_path, "ab", buffering=0)  # noqa: SIM115
@@ -578,6 +621,9 @@ class Supervisor:
         """SIGINT, then SIGTERM, then SIGKILL to the child's process group; its standby
         first, which would otherwise take over from a copy stopped on purpose."""
         self._end_standby(child)
+        if child.remote and self.deputies is not None:
+            self.deputies.stop(child, sum(self.grace) + 3.0)
+            return
         if child.popen is None:
             return
         child.state = "stopping"
@@ -597,6 +643,12 @@ class Supervisor:
     def run(self) -> int:
         """Start everything, supervise until stopped, shut down; exit code 0 when all is well."""
         old = {s: signal.signal(s, self.request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
+        if self.profile.mode == "lockstep":
+            # the loops run flat out at FIFO there, and a launch across deputies must keep
+            # its orders flowing: measured, at normal priority beside a lockstep MPFC the
+            # supervisor sent none for 5 s and its deputies stopped everything; at the lowest
+            # FIFO priority it is still below every loop
+            rt_priority(1)
         try:
             if not self._precheck():
                 self.state = "stopped"
@@ -678,6 +730,15 @@ class Supervisor:
         """Build every process's node once (``cassie check``, in a child: the supervisor
         itself imports no robot code) before anything starts: a bad param, gains file or
         channel collision stops the launch here, on the terminal."""
+        if not self._check_processes():
+            return False
+        if self.deputies is not None and not self.deputies.wait_for_deputies(30.0, self.out):
+            self.out.write("result: FAILED (deputies: nothing was started)\n")
+            self.out.flush()
+            return False
+        return True
+
+    def _check_processes(self) -> bool:
         names = [n for n in self.order if self.children[n].command is None]
         if not names or not self.check_first:
             return True
@@ -737,6 +798,10 @@ class Supervisor:
                 self._sample_resources(now)
                 self.publish_status()
                 last_status = now
+            if self.deputies is not None:
+                self.deputies.check(now)
+                if child.remote and child.state in FAILED_STATES:
+                    return not child.proc.required
             if now >= waited_note:  # a minute of numba compiling must not look like a hang
                 waited_note = now + 10.0
                 self.out.write(f"{child.proc.name}: still setting up after "
@@ -764,7 +829,13 @@ class Supervisor:
         return not child.proc.required
 
     def _supervise(self, now: float) -> None:
+        if self.deputies is not None:
+            self.deputies.check(now)
         for child in self.children.values():
+            if child.remote:  # its deputy restarts it; ready on its own TIMING, as here
+                if child.state == "starting" and child.last_msg_ns:
+                    child.state, child.ready_at = "ready", now
+                continue
             if child.state in ("starting", "ready") and child.popen is not None:
                 code = child.popen.poll()
                 if child.state == "starting" and child.last_msg_ns:
@@ -823,6 +894,8 @@ class Supervisor:
         self._last_sample = now
         self.cpu_percent = self._my_share.percent([os.getpid()])
         for child in self.children.values():
+            if child.remote:  # (its deputy measures it)
+                continue
             if child.ps is None:
                 child.cpu_percent = child.rss_mb = 0.0
                 continue
@@ -853,7 +926,7 @@ class Supervisor:
             self._end_standby(child)
         for name in reversed(self.order):
             child = self.children[name]
-            if child.popen is not None:
+            if child.popen is not None or (child.remote and child.want):
                 was = child.state
                 self._stop_child(child)
                 child.state = "stopped" if was not in FAILED_STATES else was
@@ -862,6 +935,8 @@ class Supervisor:
             if child.log_file is not None:
                 child.log_file.close()
                 child.log_file = None
+        if self.deputies is not None:
+            self.deputies.release()
         remove_checkpoints(self.link_token)  # the processes' saved states (runtime.checkpoint)
 
     # -- reporting -----------------------------------------------------------------------------
@@ -880,6 +955,7 @@ class Supervisor:
             p.required = child.proc.required
             p.pid = child.pid
             p.restarts = child.restarts
+            p.crashes = child.crashes
             p.exit_code = child.exit_code
             p.cpu_percent = child.cpu_percent
             p.cpu_s = child.cpu_s

@@ -43,6 +43,23 @@ def _cmd_launch(args: argparse.Namespace) -> int:
     return sup.run()
 
 
+def _cmd_deputy(args: argparse.Namespace) -> int:
+    """Serve launches on this host (runtime.deputy): the supervisor orders, this starts."""
+    from runtime.config import find_profile, instance, load_profile
+    from runtime.deputy import Deputy, deputy_key
+
+    if args.instance is not None:
+        os.environ["CASSIE_INSTANCE"] = str(args.instance)
+    profile = load_profile(find_profile(args.profile))  # (the bus and the channels' names)
+    if args.host not in profile.hosts:
+        raise ConfigError(str(profile.path), "hosts", f"no host named {args.host!r}",
+                          allowed=", ".join(sorted(profile.hosts)))
+    deputy = Deputy(args.host, profile.lcm_url, profile.deputy_orders_channel,
+                    profile.deputy_status_channel, deputy_key(create=not args.no_new_key),
+                    instance=instance())
+    return deputy.run()
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from runtime.config import load_profile
     from runtime.loops import LiveRunner
@@ -306,6 +323,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="print the status table as lines instead of redrawing it",
     )
 
+    deputy = sub.add_parser(
+        "deputy", help="serve launches on this host: start, stop and watch the processes the "
+        "supervisor orders for it (procman's deputy; hosts.yaml `deputy: true`)")
+    deputy.add_argument("--host", required=True, help="the host of hosts.yaml this machine is")
+    deputy.add_argument("--profile", default="sim",
+                        help="a profile for the bus and channel names (default sim); the "
+                             "orders name the profile to run")
+    deputy.add_argument("--instance", type=int, default=None, metavar="N",
+                        help="the instance of the launches to serve (as cassie launch's)")
+    deputy.add_argument("--no-new-key", action="store_true",
+                        help="fail instead of making a key when there is none (on a host the "
+                             "supervisor's key file must be copied to)")
+
     run = sub.add_parser("run", help="run one process alone with a profile's settings")
     run.add_argument("process")
     run.add_argument("--profile", required=True)
@@ -374,6 +404,8 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unrecognized arguments: {' '.join(rest)}")
         if args.command == "launch":
             return _cmd_launch(args)
+        if args.command == "deputy":
+            return _cmd_deputy(args)
         return _cmd_run(args)
     except ConfigError as exc:
         print(f"config error: {exc}", file=sys.stderr)

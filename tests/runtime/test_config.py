@@ -101,7 +101,10 @@ def test_product_config_files_are_valid():
     chans = load_yaml(HW_CONFIG_DIR / "channels.yaml")["channels"]
     parsed = {k: _channel(k, v, HW_CONFIG_DIR / "channels.yaml") for k, v in chans.items()}
     assert parsed["network_state"].ttl == 1 and parsed["state"].ttl == 0
-    assert parsed["robot_output"].udp == ("127.0.0.1", 25000)
+    assert parsed["robot_output"].udp == ("nuc", 25000)  # (a host: its address, below)
+    sim = load_profile(HW_CONFIG_DIR / "sim.yaml")
+    assert sim.channels["robot_output"].udp == (sim.hosts["nuc"].address, 25000)
+    assert sim.channels["robot_input"].udp == (sim.hosts["target_pc"].address, 25001)
     for profile in HW_CONFIG_DIR.glob("*.yaml"):
         if "launch" in load_yaml(profile):
             prof = load_profile(profile)
@@ -150,3 +153,16 @@ def test_two_input_roles_on_one_channel_are_refused_at_load(tmp_path):
     with pytest.raises(ConfigError, match=r"two_roles.yaml: overrides\.osc\.inputs\.plan: "
                        r"channel CASSIE_STATE is already its input"):
         load_profile(profile)
+
+
+def test_a_udp_link_names_a_host_or_an_address(tmp_path):
+    from runtime.config import _channel
+    from runtime.config_types import HostConfig
+    from runtime.errors import ConfigError
+
+    hosts = {"nuc": HostConfig("nuc", "10.1.2.3")}
+    f = tmp_path / "channels.yaml"
+    assert _channel("x", {"udp": "nuc:25000"}, f, hosts).udp == ("10.1.2.3", 25000)
+    assert _channel("x", {"udp": "10.0.0.9:25000"}, f, hosts).udp == ("10.0.0.9", 25000)
+    with pytest.raises(ConfigError, match=r"channels.x.udp.*'laptp' is neither a host.*nuc"):
+        _channel("x", {"udp": "laptp:25000"}, f, hosts)

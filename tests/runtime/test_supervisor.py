@@ -12,7 +12,7 @@ import psutil
 
 from lcmtypes import supervisor_status_t
 from runtime.bus import Bus
-from runtime.pairing import sign_timing
+from runtime.pairing import sign_message
 from tests.conftest import PROFILES, cassie, wait_for
 
 
@@ -214,14 +214,14 @@ def test_garbage_spoofed_timing_and_unknown_orders_are_ignored_and_counted(lcm_u
         forged = loop_timing_t()
         forged.process = forged.header.source = "ticker"
         forged.status, forged.health = "fine", 2
-        other_launch = sign_timing(copy.copy(forged), b"k" * 16)
+        other_launch = sign_message(copy.copy(forged), b"k" * 16)
         for raw in (b"\x00garbage", spoof.encode(), stranger.encode(), forged.encode(),
                     other_launch):
             sup._on_timing("TIMING", raw)
         assert sup.children["ticker"].status != "fine"
         assert not sup.children["ticker"].fault
         assert sup.refused["TIMING"] == 5
-        sup._on_timing("TIMING", sign_timing(forged, sup.timing_key))
+        sup._on_timing("TIMING", sign_message(forged, sup.timing_key))
         assert sup.refused["TIMING"] == 5  # the launch's own key: not refused
         bad = supervisor_orders_t()
         bad.process, bad.order = "ticker", "explode"
