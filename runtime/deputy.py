@@ -146,7 +146,7 @@ class DeputyLink:
         if pid != child.remote_pid and state in ("starting", "ready"):
             # a new copy (a restart, its standby): ready once its own TIMING comes
             child.state, child.started_at, child.ready_at = "starting", time.monotonic(), 0.0
-            child.last_msg_ns, child.status, child.health = 0, "", 0
+            child.last_msg_ns, child.status, child.health, child.timing_mark = 0, "", 0, 0
         elif state not in ("starting", "ready") and (child.want or state != "stopping"):
             child.state = state
         child.remote_pid = pid
@@ -215,6 +215,7 @@ class DeputyLink:
         child.run_id += 1
         child.state, child.started_at, child.ready_at = "starting", time.monotonic(), 0.0
         child.last_msg_ns, child.status, child.health, child.detail = 0, "", 0, ""
+        child.timing_mark = 0
         child.log_path = self.sup.log_dir / f"{child.proc.name}.log"
         self.send(force=True)
 

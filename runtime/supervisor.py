@@ -164,6 +164,8 @@ class Child:
     loop_rate_hz: float = 0.0
     deadline_misses: int = 0
     last_msg_ns: int = 0  # its newest TIMING message (its heartbeat)
+    #: the send time of the newest TIMING taken from this copy of it: an older one is a replay
+    timing_mark: int = 0
     status: str = ""  # its node's status line, from TIMING
     counters: dict[str, float] = field(default_factory=dict)  # its node's, from TIMING
     health: int = 0
@@ -364,6 +366,13 @@ class Supervisor:
             return
         if child.popen is None and not (child.remote and child.want):
             return  # a last report of a process being stopped: nothing to take
+        if msg.header.send_mono_ns <= child.timing_mark:
+            # signed, but not newer than one already taken from this copy of the process: a
+            # recorded message sent again (the tag proves the launch, this its freshness)
+            self._refuse("TIMING", f"for process {msg.process!r} replayed (sent at "
+                         f"{msg.header.send_mono_ns} ns, not after {child.timing_mark} ns)")
+            return
+        child.timing_mark = msg.header.send_mono_ns
         child.last_msg_ns = time.monotonic_ns()
         if msg.ticks or msg.window_s > 0.5:  # not the set-up heartbeat's empty window
             child.loop_rate_hz = msg.rate_hz
@@ -551,7 +560,7 @@ class Supervisor:
             child.standby_pipe = -1
         child.popen = sb
         child.state, child.started_at, child.ready_at = "starting", now, 0.0
-        child.last_msg_ns, child.status, child.health = 0, "", 0
+        child.last_msg_ns, child.status, child.health, child.timing_mark = 0, "", 0, 0
         child.takeovers += 1
         child.detail = f"{how}; its standby took over"
         try:
@@ -594,6 +603,7 @@ class Supervisor:
         child.started_at = time.monotonic()
         child.ready_at = 0.0
         child.last_msg_ns = 0
+        child.timing_mark = 0
         child.status = ""
         child.health = 0
         child.detail = ""

@@ -238,3 +238,37 @@ def test_garbage_spoofed_timing_and_unknown_orders_are_ignored_and_counted(lcm_u
         assert "last: start of unknown process 'intruder'" in text
     finally:
         sup.bus.close()
+
+
+def test_a_replayed_signed_timing_message_is_refused(lcm_url, tmp_path):
+    """The tag proves the launch; the send time, which the tag covers, proves freshness: a
+    TIMING message recorded and sent again is not taken (it could say a dead copy is well)."""
+    import io
+    import subprocess
+
+    from lcmtypes import loop_timing_t
+    from runtime.config import load_profile
+    from runtime.supervisor import Supervisor
+
+    sup = Supervisor(load_profile(PROFILES / "supervised.yaml"), log_dir=tmp_path,
+                     out=io.StringIO(), live_table=False)
+    child = sup.children["ticker"]
+    child.popen = subprocess.Popen(["sleep", "30"])  # (a live copy for TIMING to be about)
+    try:
+        msg = loop_timing_t()
+        msg.process = msg.header.source = "ticker"
+        msg.status, msg.header.send_mono_ns = "first", 1_000
+        first = sign_message(copy.copy(msg), sup.timing_key)
+        sup._on_timing("TIMING", first)
+        assert child.status == "first" and not sup.refused
+        msg.status, msg.header.send_mono_ns = "second", 2_000
+        sup._on_timing("TIMING", sign_message(msg, sup.timing_key))
+        sup._on_timing("TIMING", first)  # the recording of the first, sent again
+        assert child.status == "second"
+        assert sup.refused == {"TIMING": 1}
+        assert "replayed" in sup._refused_last["TIMING"]
+    finally:
+        child.popen.kill()
+        child.popen.wait()
+        child.popen = None
+        sup.bus.close()
