@@ -33,14 +33,60 @@ _MISSING = dataclasses.MISSING
 
 
 def spec(default: Any = _MISSING, *, lo: float | None = None, hi: float | None = None,
-         lo_open: bool = False, choices: tuple[Any, ...] | None = None,
-         default_factory: Any = _MISSING) -> Any:
-    """A dataclass field with its allowed range (``lo`` <= v <= ``hi``; ``lo_open``: lo < v)
-    or its allowed values, checked by ``read``."""
-    meta = {"lo": lo, "hi": hi, "lo_open": lo_open, "choices": choices}
+         lo_open: bool = False, hi_open: bool = False, choices: tuple[Any, ...] | None = None,
+         unit: str = "", default_factory: Any = _MISSING) -> Any:
+    """A dataclass field with its allowed range (``lo`` <= v <= ``hi``; ``lo_open``: lo < v,
+    ``hi_open``: v < hi; ``unit`` for the message) or its allowed values, checked by
+    ``read``."""
+    meta = {"lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open, "choices": choices,
+            "unit": unit}
     if default_factory is not _MISSING:
         return dataclasses.field(default_factory=default_factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
+
+
+def load(cls: type[T], path: str | Path, variant: str | None = None) -> T:
+    """A gains file as a ``cls``. The one shape of a gains file: the fields of ``cls`` at the
+    top level, and optionally ``variants: {NAME: {...}}`` (e.g. the hardware and simulation
+    columns of a paper's table), one of which ``variant`` (else ``default_variant``) lays
+    over the top level, key by key."""
+    from runtime.config import load_yaml
+
+    file = str(path)
+    data = dict(load_yaml(Path(path)))
+    variants = data.pop("variants", None)
+    default = data.pop("default_variant", None)
+    name = variant if variant is not None else default
+    if variants is None:
+        if variant is not None:
+            raise ConfigError(file, "variants", f"no variants, so no variant {variant!r}",
+                              "a `variants:` mapping in the file, or no `variant` param")
+        return read(cls, data, file)
+    if not isinstance(variants, Mapping) or not all(isinstance(v, Mapping) or v is None
+                                                    for v in variants.values()):
+        raise ConfigError(file, "variants", "must be a mapping of name -> mapping of values")
+    if name is None:
+        return read(cls, data, file)
+    if name not in variants:
+        raise ConfigError(file, "default_variant" if variant is None else "variants",
+                          f"no variant {name!r}", ", ".join(map(str, variants)))
+    top = dict(variants[name] or {})
+    try:
+        return read(cls, _lay_over(data, top), file)
+    except ConfigError as exc:  # name the key where it is written: in the variant, or above
+        if exc.key.split(".")[0].split("[")[0] in top:
+            raise ConfigError(file, f"variants.{name}.{exc.key}", exc.problem,
+                              exc.allowed) from None
+        raise
+
+
+def _lay_over(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
+    """``top`` over ``base``: mappings merge key by key, anything else replaces."""
+    out = dict(base)
+    for k, v in top.items():
+        out[k] = _lay_over(out[k], v) if isinstance(v, Mapping) and isinstance(
+            out.get(k), Mapping) else v
+    return out
 
 
 def read(cls: type[T], data: Any, file: str | Path, key: str = "") -> T:
@@ -79,7 +125,9 @@ def _allowed(tp: Any, f: dataclasses.Field[Any] | None) -> str | None:
     lo, hi = meta.get("lo"), meta.get("hi")
     if lo is not None or hi is not None:
         left = "(" if meta.get("lo_open") else "["
-        return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}]"
+        right = ")" if meta.get("hi_open") else "]"
+        unit = f" {meta['unit']}" if meta.get("unit") else ""
+        return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}{right}{unit}"
     if tp is bool:
         return "true, false"
     if typing.get_origin(tp) is typing.Literal:
@@ -146,4 +194,4 @@ def _in_range(v: float, f: dataclasses.Field[Any] | None) -> bool:
     lo, hi = f.metadata.get("lo"), f.metadata.get("hi")
     if lo is not None and (v < lo or (f.metadata.get("lo_open") and v == lo)):
         return False
-    return hi is None or v <= hi
+    return hi is None or v < hi or (v == hi and not f.metadata.get("hi_open"))

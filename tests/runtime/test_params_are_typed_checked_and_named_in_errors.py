@@ -62,3 +62,19 @@ def test_a_bad_key_or_value_is_an_error_naming_file_key_and_allowed(data, messag
         read(Gains, data, F, key="osc")
     assert message in str(err.value)
     assert str(err.value).startswith(F)
+
+
+def test_a_gains_file_has_one_shape_top_level_values_and_variants_over_them(tmp_path) -> None:
+    from runtime.params import load
+
+    path = tmp_path / "g.yaml"
+    path.write_text("rate_hz: 500\nswing: {kp: 80}\ndefault_variant: sim\nvariants:\n"
+                    "  sim: {steps: 3, swing: {mode: task}}\n  hw: {rate_hz: 0}\n")
+    assert load(Gains, path) == Gains(rate_hz=500.0, steps=3, swing=Swing(80.0, "task"))
+    with pytest.raises(ConfigError, match=r"g.yaml: variants.hw.rate_hz: out of range: 0"):
+        load(Gains, path, "hw")
+    with pytest.raises(ConfigError, match=r"variants: no variant 'real' \(allowed: sim, hw\)"):
+        load(Gains, path, "real")
+    path.write_text("rate_hz: 5\nrate_hz: 6\n")
+    with pytest.raises(ConfigError, match="rate_hz"):  # a key twice: never the last one silently
+        load(Gains, path)
