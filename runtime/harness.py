@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
-import importlib
 import time
 from collections import defaultdict
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from runtime.builder import build_node
 from runtime.bus import Subscription
 from runtime.config_types import Profile
 from runtime.node import Node, OutputGates, SlotGate, TickGuard
@@ -144,10 +144,17 @@ class Harness:
                     raise ValueError(f"{b.node.name}: a periodic node needs period_s")
                 self._push(0, i, "periodic", None)
 
-    def run_until(self, t_us: int, stop: Callable[[], bool] | None = None) -> int:
-        """Process every event up to sim time ``t_us``; returns the sim time reached."""
+    def run_until(self, t_us: int, stop: Callable[[], bool] | None = None,
+                  progress: Callable[[int], None] | None = None,
+                  progress_every_us: int = 100_000) -> int:
+        """Process every event up to sim time ``t_us``; returns the sim time reached.
+        ``progress(now_us)`` is called each time sim time passes another
+        ``progress_every_us``, and once at the end: a tool's progress bar (the harness draws
+        nothing itself); it must not touch the harness."""
         self.start()
         same_time = 0
+        # (checked only when sim time moves on, so a run without it costs nothing per event)
+        next_report = self.now_us + progress_every_us if progress is not None else None
         while self._events and self._events[0][0] <= t_us:
             t, _, i, kind, payload = heapq.heappop(self._events)
             if t == self.now_us:
@@ -160,6 +167,9 @@ class Harness:
                     )
             else:
                 same_time = 0
+                if next_report is not None and t >= next_report:
+                    progress(t)  # type: ignore[misc]
+                    next_report = t + progress_every_us
             self.now_us = t
             if kind == "deliver":
                 self._deliver(*payload)
@@ -171,8 +181,12 @@ class Harness:
                 self._pending_tick[i] = False
                 self._tick_trigger(i)
             if stop is not None and stop():
+                if progress is not None:
+                    progress(self.now_us)
                 return self.now_us
         self.now_us = max(self.now_us, t_us)
+        if progress is not None:
+            progress(self.now_us)
         return self.now_us
 
     def close(self) -> None:
@@ -189,13 +203,7 @@ class Harness:
         bindings = []
         for name in names or list(profile.launch):
             proc = profile.processes[name]
-            module = importlib.import_module(proc.module)
-            if not hasattr(module, "make_node"):
-                raise ValueError(
-                    f"process {name} ({proc.module}) has no make_node(proc, profile) "
-                    "and cannot run in the harness"
-                )
-            node = module.make_node(proc, profile)
+            node = build_node(proc, profile)
             if node.trigger_role is None and node.period_s is None:
                 if not proc.rate_hz:
                     raise ValueError(f"process {name} is periodic but has no rate_hz")

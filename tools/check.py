@@ -11,11 +11,11 @@ any gains file stops the launch on the terminal, not after a partial start in on
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 import time
 from dataclasses import dataclass
 
+from runtime.builder import build_node, process_module
 from runtime.config import load_profile
 from runtime.config_types import Profile
 from runtime.errors import ConfigError
@@ -44,9 +44,9 @@ def check_profile(profile: Profile, names: list[str] | None = None) -> tuple[
         results.append(out)
         t0 = time.perf_counter()
         try:
-            module = importlib.import_module(proc.module)
+            module = process_module(proc)
             if hasattr(module, "make_node"):
-                node = module.make_node(proc, profile)
+                node = build_node(proc, profile)
                 out.node_type = type(node).__name__
                 roles = [r for r in node.outputs if r in proc.outputs]
             elif hasattr(module, "check"):  # a main(proc, profile) program that can check

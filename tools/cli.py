@@ -61,6 +61,7 @@ def _cmd_deputy(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from runtime.builder import build_node, process_module
     from runtime.config import load_profile
     from runtime.loops import LiveRunner
     from runtime.scheduling import apply_scheduling, pin_to_supervisor_host
@@ -85,9 +86,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         # NUC's loops, even at nice 19, took 16 % of their CPU and its caches (perf sched,
         # measured), and their deadlines with it. It moves home once it is set up.
         pin_to_supervisor_host(profile)
-    module = importlib.import_module(proc.module)
+    module = process_module(proc)
     if hasattr(module, "make_node"):
-        node = module.make_node(proc, profile)
+        node = build_node(proc, profile)
         set_up = False
         succession = None
         if args.standby:
