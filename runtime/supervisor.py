@@ -38,6 +38,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -141,6 +142,17 @@ class CpuShare:
         return 100.0 * ran / elapsed if elapsed > 0 else 0.0
 
 
+@dataclass(frozen=True)
+class Helper:
+    """A supporting program the launch starts before the stack (the logger, the dashboard):
+    supervised, never required, no heartbeat; the tools floor says what it runs."""
+
+    name: str
+    command: tuple[str, ...]
+    nice: int | None = None
+    rt_priority: int | None = None
+
+
 @dataclass
 class Child:
     """The supervisor's record of one process."""
@@ -219,8 +231,7 @@ class Supervisor:
         live_table: bool | None = None,
         extra_args: list[str] | None = None,
         shutdown_grace_s: tuple[float, float] = (3.0, 2.0),
-        log_lcm: bool = False,
-        dashboard: bool = False,
+        helpers: Sequence[Helper] = (),
         check_first: bool = True,
         screen: bool = False,
         hosts: tuple[str, ...] | None = None,
@@ -267,28 +278,9 @@ class Supervisor:
         self._all_cpus = tuple(sorted(os.sched_getaffinity(0)))  # children start unpinned
         # the supervisor runs "on the laptop", as procman's sheriff would
         self.home_cpus = pin_to_supervisor_host(profile, hosts[0] if hosts else None)
-        if log_lcm:
-            # every domain (each host's bus and the network) into one log, read in batches so
-            # that recording never wakes anyone's CPU per message (tools/logger.py)
-            # In lockstep the stack runs flat out at real-time priority and a nice 10 logger
-            # starved: 173,563 datagrams (depth frames, maps) lost to full buffers in a 12 s
-            # perception run, no map logged at all. There it reads at the lowest FIFO priority
-            # (sim time waits a moment; it has no deadline); in real time it stays nice 10,
-            # below every loop.
-            self._add_helper(
-                "logger",
-                [sys.executable, "-m", "tools.cli", "log", str(profile.path),
-                 str(self.log_dir / "lcm.log")],
-                first=True, nice=10, rt_priority=1 if profile.mode == "lockstep" else None,
-            )
-        if dashboard:
-            # Started before the stack so it sees everything; it records headless into the log
-            # folder, and also opens a viewer where there is a display. It renices itself.
-            cmd = [sys.executable, "-m", "tools.cli", "dashboard", "--profile", str(profile.path),
-                   "--save", str(self.log_dir / "dashboard.rrd")]
-            if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
-                cmd.append("--spawn")
-            self._add_helper("dashboard", cmd, first=True)
+        for h in helpers or ():
+            self._add_helper(h.name, list(h.command), first=True, nice=h.nice,
+                             rt_priority=h.rt_priority)
         self.state = "starting"
         self.t0 = time.monotonic()
         #: TIMING messages and orders not taken (malformed, unknown sender or process), by kind
@@ -422,8 +414,7 @@ class Supervisor:
         return [
             sys.executable,
             "-m",
-            "tools.cli",
-            "run",
+            "runtime.run",
             child.proc.name,
             "--profile",
             str(self.profile.path),
@@ -752,7 +743,7 @@ class Supervisor:
         names = [n for n in self.order if self.children[n].command is None]
         if not names or not self.check_first:
             return True
-        cmd = [sys.executable, "-m", "tools.cli", "check", str(self.profile.path)]
+        cmd = [sys.executable, "-m", "runtime.check", str(self.profile.path)]
         for n in names:
             cmd += ["--process", n]
         t0 = time.monotonic()

@@ -1,6 +1,7 @@
-"""``cassie check PROFILE``: build every process of a launch profile without running it.
+"""``cassie check PROFILE`` (``python -m runtime.check``): build every process of a launch
+profile without running it.
 
-Each process's node is made exactly as ``cassie run`` makes it (``make_node(proc, profile)``:
+Each process's node is made exactly as ``cassie run`` makes it (``runtime.builder``:
 its params and gains files read and validated), but never set up or started. Then the
 channels the built nodes publish are compared: two processes publishing on one LCM channel
 are refused (the subscriber would take both streams as one, and the launch would blame the
