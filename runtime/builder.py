@@ -45,9 +45,23 @@ def read_config(proc: ProcessConfig, module: Any) -> tuple[Any, Any]:
     return params, load(gains_cls, proc.gains_file, getattr(params, "variant", None))
 
 
-def build_node(proc: ProcessConfig, profile: Profile) -> Node:
-    """``proc``'s node, its params and gains checked first; a ConfigError names the file."""
-    module = process_module(proc)
+def apply_rates(node: Node, proc: ProcessConfig) -> None:
+    """A node's period and deadline from hw_config, the same for both runners: a periodic
+    node ticks every 1 / ``rate_hz``; the deadline is ``deadline_ms``, else the period."""
+    if node.period_s is None and node.trigger_role is None and proc.rate_hz:
+        node.period_s = 1.0 / proc.rate_hz
+    if node.deadline_s is None:
+        if proc.deadline_ms is not None:
+            node.deadline_s = proc.deadline_ms / 1000.0
+        elif node.period_s:
+            node.deadline_s = node.period_s
+
+
+def build_node(proc: ProcessConfig, profile: Profile, module: Any = None) -> Node:
+    """``proc``'s node, its params and gains checked first; a ConfigError names the file.
+    ``module``: build with this module instead of ``proc.module`` (a benchmark's copy of
+    another revision's)."""
+    module = process_module(proc) if module is None else module
     if not hasattr(module, "make_node"):
         raise ConfigError(str(proc.source_file), proc.key("module"),
                           f"{proc.module} has no make_node and runs no node",

@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from runtime.builder import build_node
+from runtime.builder import apply_rates, build_node
 from runtime.bus import Subscription
 from runtime.config_types import Profile
 from runtime.node import Node, OutputGates, SlotGate, TickGuard
@@ -79,6 +79,8 @@ class Harness:
         self._seq: dict[str, int] = defaultdict(int)
         self._taps: dict[str, list[Callable[[int, Any], None]]] = defaultdict(list)
         self.exec_ns: list[list[int]] = []
+        #: per binding: ticks so far (a pending timeout fires only if no tick came since)
+        self._triggered: list[int] = []
         #: per binding: its ticks' exceptions, caught and counted as in a live process
         self.guards: list[TickGuard] = []
         self.published: dict[str, int] = defaultdict(int)
@@ -131,6 +133,7 @@ class Harness:
         self._rate_gates.append(
             SlotGate(b.max_rate_hz) if b.max_rate_hz and b.node.trigger_role else None)
         self.exec_ns.append([])
+        self._triggered.append(0)
 
     # -- running ---------------------------------------------------------------------------
     def start(self) -> None:
@@ -177,6 +180,9 @@ class Harness:
                 self._tick(i, None)
                 period_us = round(self.bindings[i].node.period_s * US)  # type: ignore[operator]
                 self._push(t + period_us, i, "periodic", None)
+            elif kind == "timeout":
+                if payload == self._triggered[i]:  # nothing came since: the timeout's tick
+                    self._tick(i, None)
             elif kind == "trigger":
                 self._pending_tick[i] = False
                 self._tick_trigger(i)
@@ -194,22 +200,22 @@ class Harness:
             b.node.close()
 
     @classmethod
-    def from_profile(cls, profile: Profile, names: list[str] | None = None) -> Harness:
-        """The profile's processes (or ``names``) built with their own ``make_node`` and bound to
-        the same channels as live, each with its configured ``harness_delay_ms``."""
-        # The harness is a lockstep execution: nodes that behave differently in real time (a
-        # sim rendering depth in another process, say) are built for lockstep.
-        profile = dataclasses.replace(profile, mode="lockstep")
+    def from_profile(cls, profile: Profile, names: list[str] | None = None,
+                     mode: str | None = "lockstep") -> Harness:
+        """The profile's processes (or ``names``) built as live (``runtime.builder``) and bound
+        to the same channels, each with its configured ``harness_delay_ms``. The harness is a
+        lockstep execution, so by default nodes that differ in real time (a sim rendering
+        depth in another process, say) are built for lockstep; ``mode="realtime"`` (or None:
+        the profile's own) builds their real-time variants, to test those in sim-time order."""
+        if mode is not None:
+            profile = dataclasses.replace(profile, mode=mode)  # type: ignore[arg-type]
         bindings = []
         for name in names or list(profile.launch):
             proc = profile.processes[name]
             node = build_node(proc, profile)
+            apply_rates(node, proc)
             if node.trigger_role is None and node.period_s is None:
-                if not proc.rate_hz:
-                    raise ValueError(f"process {name} is periodic but has no rate_hz")
-                node.period_s = 1.0 / proc.rate_hz
-            if node.deadline_s is None and proc.deadline_ms is not None:
-                node.deadline_s = proc.deadline_ms / 1e3
+                raise ValueError(f"process {name} is periodic but has no rate_hz")
             bindings.append(
                 Binding(
                     node,
@@ -289,10 +295,17 @@ class Harness:
             header = getattr(trigger, "header", None)
             ctx.now_utime = int(header.utime) if header is not None else self.now_us
         inbox = self._inboxes[i]
-        inbox._trigger = trigger
+        inbox.set_trigger(trigger)
         t0 = time.perf_counter_ns()
         self.guards[i].tick(ctx, inbox)
         self.exec_ns[i].append(time.perf_counter_ns() - t0)
+        timeout = self.bindings[i].node.trigger_timeout_s
+        if timeout and self.bindings[i].node.trigger_role is not None:
+            # the node's trigger timeout in sim time: a tick with no trigger if none comes
+            # within it (``Node.trigger_timeout_s``); one pending check per tick is enough
+            self._triggered[i] += 1
+            self._push(self.now_us + max(1, round(timeout * US)), i, "timeout",
+                       self._triggered[i])
 
 
 def _encode(msg: Any) -> bytes:

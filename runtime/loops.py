@@ -35,6 +35,7 @@ import threading
 import time
 from typing import Any
 
+from runtime.builder import apply_rates
 from runtime.bus import Bus, Subscription
 from runtime.checkpoint import StateCheckpoint, checkpoint_path
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
@@ -127,13 +128,7 @@ class LiveRunner:
         #: triggers whose send time was not this host's clock (see FOREIGN_CLOCK_NS)
         self.timed_from_arrival = 0
         self.stop_event = threading.Event()
-        if node.period_s is None and node.trigger_role is None and proc.rate_hz:
-            node.period_s = 1.0 / proc.rate_hz
-        if node.deadline_s is None:
-            if proc.deadline_ms is not None:
-                node.deadline_s = proc.deadline_ms / 1000.0
-            elif node.period_s:
-                node.deadline_s = node.period_s
+        apply_rates(node, proc)
         #: wall seconds per sim second (1 / rtf): periods and deadlines stretch with it
         self.wall_per_sim = 1.0 / profile.rtf if profile.mode == "realtime" else 1.0
         self.ports: dict[str, Port] = {}
@@ -395,7 +390,7 @@ class LiveRunner:
             c0 = thread_ns()
             self._poll(0.0)
             self.ctx.now_utime = k * period_us
-            self.inbox._trigger = None
+            self.inbox.set_trigger(None)
             self.guard.tick(self.ctx, self.inbox)
             end = mono_ns()
             cpu = thread_ns() - c0
@@ -442,7 +437,7 @@ class LiveRunner:
         while not self.stop_event.is_set():
             # read before each wait: a node may adapt it (the sim's ResendTimer); wait no
             # longer than what is left of it, so a wake on something else never stretches it
-            timeout_s = getattr(self.node, "trigger_timeout_s", None)
+            timeout_s = self.node.trigger_timeout_s
             if timeout_s is None:
                 poll_s = 0.05
             else:
@@ -491,7 +486,7 @@ class LiveRunner:
                 last_trigger_ns = time.monotonic_ns()
             elif (not triggered and timeout_s is not None
                   and now - last_trigger_ns > timeout_s * 1e9):
-                self.inbox._trigger = None  # the watchdog's tick
+                self.inbox.set_trigger(None)  # the watchdog's tick
                 self.guard.tick(self.ctx, self.inbox)
                 last_trigger_ns = time.monotonic_ns()
             now = time.monotonic_ns()
@@ -519,7 +514,7 @@ class LiveRunner:
             utime = _utime(msg)
         if utime:
             self.ctx.now_utime = utime
-        self.inbox._trigger = msg
+        self.inbox.set_trigger(msg)
         self.guard.tick(self.ctx, self.inbox)
         end = time.monotonic_ns()
         cpu = time.thread_time_ns() - c0

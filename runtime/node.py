@@ -176,6 +176,10 @@ class Node:
     #: leaves alone: where a bad message calls for a reaction, not only a rejection (the
     #: torque bridge answers a NaN command with its fallback at once)
     validates_own: tuple[str, ...] = ()
+    #: message-driven nodes: with no trigger for this long, a tick with ``inbox.trigger()``
+    #: None (a watchdog, a resend). Live it is wall-clock seconds, read before every wait (a
+    #: node may adapt it: the sim's resend timer); the harness counts it in sim time
+    trigger_timeout_s: float | None = None
     #: set by the runner from ``hw_config`` (rate_hz, deadline_ms) before ``setup``
     period_s: float | None = None
     deadline_s: float | None = None

@@ -170,6 +170,10 @@ class PortInbox:
     def trigger(self) -> Any | None:
         return self._trigger
 
+    def set_trigger(self, msg: Any | None) -> None:
+        """The runner's part: the message this tick is on (None: a tick without one)."""
+        self._trigger = msg
+
     def pop(self, role: str) -> Any | None:
         return self._ports[role].pop()
 
