@@ -122,6 +122,12 @@ def load_yaml(path: Path) -> dict[str, Any]:
     return data
 
 
+# The three readers below are no process's own any more (each reads its params and gains as
+# runtime.params dataclasses, through runtime.builder): they stay for the benchmarks' baselines,
+# which import an older revision's process code beside this tree's runtime (e.g.
+# tools/benchmarks/estimator.py's baseline_state_estimator).
+
+
 def param_number(proc: ProcessConfig, name: str, *, default: Any = None,
                  lo: float | None = None, hi: float | None = None, lo_open: bool = False,
                  hint: str | None = None) -> Any:

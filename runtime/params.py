@@ -6,7 +6,9 @@ field's metadata the range. Every error is a ``ConfigError`` naming the file, th
 and what is allowed, as the profile loader's are. Written here rather than with pydantic or
 msgspec: those would need a translation layer to give errors in the project's one shape
 (file, key, allowed), and the types in use are few (numbers, booleans, strings, fixed tuples,
-nested dataclasses).
+nested dataclasses). A check across fields (min <= max, an odd kernel) is the dataclass's
+``__post_init__`` raising ``ConfigError("<ClassName>", key, problem, allowed)``: ``read`` puts
+the file and the dotted key in its place, and ``check`` runs both on an object built in code.
 
     @dataclass(frozen=True)
     class SwingGains:
@@ -100,7 +102,7 @@ def read(cls: type[T], data: Any, file: str | Path, key: str = "") -> T:
     for k in data:
         if k not in fields:
             raise ConfigError(file, _join(key, str(k)), "unknown key",
-                              ", ".join(sorted(fields)))
+                              ", ".join(sorted(fields)) or "none: it takes no keys")
     values: dict[str, Any] = {}
     for name, f in fields.items():
         if not f.init:
@@ -111,7 +113,20 @@ def read(cls: type[T], data: Any, file: str | Path, key: str = "") -> T:
                 raise ConfigError(file, full, "is required", _allowed(hints[name], f))
             continue
         values[name] = _value(hints[name], data[name], f, file, full)
-    return cls(**values)
+    try:
+        return cls(**values)
+    except ConfigError as exc:  # a cross-field check of __post_init__: name the file here
+        if exc.file and not exc.file.startswith("<"):
+            raise
+        raise ConfigError(file, _join(key, exc.key), exc.problem, exc.allowed) from None
+
+
+def check(obj: T, file: str | Path = "") -> T:
+    """``obj``, a params dataclass built in code (``dataclasses.replace``, a test), checked as
+    ``read`` checks a file's values: types and ranges (``__post_init__`` has checked the rest).
+    Returns ``obj``; a ConfigError names ``file`` (default ``<ClassName>``) and the key."""
+    read(type(obj), dataclasses.asdict(obj), file or f"<{type(obj).__name__}>")
+    return obj
 
 
 def _join(key: str, name: str) -> str:
@@ -145,10 +160,10 @@ def _value(tp: Any, v: Any, f: dataclasses.Field[Any] | None, file: str, key: st
         if len(inner) == 1:
             return _value(inner[0], v, f, file, key)
         raise TypeError(f"{key}: unions other than X | None are not supported")
-    if origin is typing.Literal:
-        if v not in args:
+    if origin is typing.Literal:  # of the same type too: 1 is not True, nor 0 False
+        if not any(v == a and type(v) is type(a) for a in args):
             raise ConfigError(file, key, f"{v!r} is not one of the allowed values",
-                              ", ".join(map(str, args)))
+                              _allowed(tp, f))
         return v
     if dataclasses.is_dataclass(tp):
         return read(tp, v, file, key)  # type: ignore[arg-type]

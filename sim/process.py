@@ -14,10 +14,11 @@ sim tick on the clock instead (the deterministic harness's sim-time ticks).
 Depth rendering: in real time, in a child process (``mj_multiRay`` holds the GIL for ~4 ms
 per frame, so a thread would stall this loop); in lockstep, inline at the capture tick.
 
-Settings: ``proc.params`` (``PARAMS``: terrain, terrain_seed, drive, camera_render,
-publish_footholds) and ``proc.gains_file`` (``hw_config/gains/sim.yaml``: physics, watchdog,
-holder, camera, ground-truth rate, lockstep), validated with ``ConfigError`` naming the file
-and key.
+Settings: ``Params`` (``proc.params``: terrain, terrain_seed, drive, camera_render,
+publish_footholds, push, holder_release) and ``Gains`` (``SimGains``, the gains file
+``hw_config/gains/sim.yaml``: physics, watchdog, holder, camera, real time, lockstep), read
+and checked by ``runtime.params`` (``runtime.builder.build_node``): a ``ConfigError`` names
+the file and the key.
 """
 
 from __future__ import annotations
@@ -29,16 +30,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from time import perf_counter
-from typing import Any, Literal
-
-import yaml
+from typing import Literal
 
 from lcmtypes import depth_frame_t, foothold_set_t, ground_truth_t
-from runtime.config import safe_load
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
 from runtime.node import HEALTH_FAULT, HEALTH_OK, Context, Inbox, Node
 from runtime.pairing import link_token
+from runtime.params import read, spec
 from runtime.udp import ResendTimer
 from sim import terrain as terrain_mod
 from sim.camera import (
@@ -49,10 +48,10 @@ from sim.camera import (
     ProcessDepthRenderer,
 )
 from sim.target_pc import (
-    RELEASE_ON,
     HolderConfig,
     Mode,
     PushConfig,
+    ReleaseOn,
     SimConfig,
     TargetPC,
     make_core,
@@ -70,7 +69,7 @@ RENDER_MODES: tuple[str, ...] = ("auto", "process", "thread", "inline")
 
 @dataclass(frozen=True)
 class SimSettings:
-    """Everything the sim process reads from hw_config, validated."""
+    """What the sim runs on: its gains file (``settings_of``), the terrain of its params."""
 
     terrain: Terrain = field(default_factory=terrain_mod.flat)
     sim: SimConfig = field(default_factory=SimConfig)
@@ -87,204 +86,169 @@ class SimSettings:
     gil_switch_interval_s: float | None = 2e-4  # shorter GIL hand-offs (thread renderer only)
 
 
-# -- validation helpers ------------------------------------------------------------------------
+# -- the gains file and the params (runtime.params) -------------------------------------------
 
 
-def _check_keys(file: str, prefix: str, doc: dict[str, Any], allowed: set[str]) -> None:
-    for k in doc:
-        if k not in allowed:
-            raise ConfigError(file, f"{prefix}{k}", "unknown key", ", ".join(sorted(allowed)))
+@dataclass(frozen=True)
+class PhysicsGains:
+    """``physics:``: MuJoCo's contact model and the standing pose of the start."""
+
+    impratio: float = spec(SimConfig.impratio, lo=1.0, hi=1000.0)
+    pelvis_height_m: float = spec(SimConfig.pelvis_height, lo=0.7, hi=1.05, unit="m")
+    foot_y_m: float = spec(SimConfig.foot_y, lo=0.0, hi=0.3, unit="m")
 
 
-def _num(file: str, key: str, v: Any, *, lo: float | None = None, hi: float | None = None,
-         integer: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, int if integer else (int, float)):
-        raise ConfigError(file, key, f"must be {'an integer' if integer else 'a number'}, "
-                                     f"got {v!r}")
-    if (lo is not None and v < lo) or (hi is not None and v > hi):
-        rng = f"[{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}]"
-        raise ConfigError(file, key, f"{v!r} is out of range", allowed=rng)
-    return v
+_CAM = CameraConfig  # the camera's defaults are its own
 
 
-def _bool(file: str, key: str, v: Any) -> bool:
-    if not isinstance(v, bool):
-        raise ConfigError(file, key, f"must be true or false, got {v!r}")
-    return v
+@dataclass(frozen=True)
+class CameraGains:
+    """``camera:``: the depth camera (``sim.camera.CameraConfig``), whether it is on and how
+    it renders."""
+
+    enabled: bool = True
+    #: auto: a child process in real time, inline in lockstep
+    render: str = spec("auto", choices=RENDER_MODES)
+    width: int = spec(_CAM.width, lo=1, hi=4096)  # full-resolution intrinsics
+    height: int = spec(_CAM.height, lo=1, hi=4096)
+    fx: float = spec(_CAM.fx, lo=1e-6)
+    fy: float = spec(_CAM.fy, lo=1e-6)
+    cx: float = spec(_CAM.cx)
+    cy: float = spec(_CAM.cy)
+    decimation: int = spec(_CAM.decimation, lo=1, hi=64)
+    depth_scale: float = spec(_CAM.depth_scale, lo=1e-6, hi=1.0, unit="m")
+    min_range_m: float = spec(_CAM.min_range_m, lo=0.0, unit="m")
+    max_range_m: float = spec(_CAM.max_range_m, lo=1e-3, hi=65.0, unit="m")
+    mount_pos_m: tuple[float, float, float] = spec(_CAM.mount_pos, unit="m")  # pelvis frame
+    pitch_down_deg: float = spec(_CAM.pitch_down_deg, lo=-90.0, hi=90.0, unit="deg")
+    rate_hz: float = spec(_CAM.rate_hz, lo=1e-3, hi=1000.0, unit="Hz")
+    noise_std_at_1m: float = spec(_CAM.noise_std_at_1m, lo=0.0, hi=1.0, unit="m")
+    dropout: float = spec(_CAM.dropout, lo=0.0, hi=1.0)
+    see_robot: bool = _CAM.see_robot
+    seed: int = spec(_CAM.seed, lo=0)
+
+    def __post_init__(self) -> None:
+        if self.min_range_m >= self.max_range_m:
+            raise ConfigError("<CameraGains>", "min_range_m", f"{self.min_range_m} is not below "
+                              f"max_range_m ({self.max_range_m})",
+                              f"[0.0, {self.max_range_m}) m")
+        if self.width // self.decimation < 1 or self.height // self.decimation < 1:
+            raise ConfigError("<CameraGains>", "decimation", f"{self.decimation} leaves an "
+                              f"empty image of {self.width} x {self.height}",
+                              f"[1, {min(self.width, self.height)}]")
+
+    def config(self) -> CameraConfig:
+        """The camera's own settings."""
+        kw = {f.name: getattr(self, f.name) for f in fields(CameraConfig) if f.name != "mount_pos"}
+        return CameraConfig(**kw, mount_pos=self.mount_pos_m)
 
 
-def _mapping(file: str, key: str, v: Any) -> dict[str, Any]:
-    if v is None:
-        return {}
-    if not isinstance(v, dict):
-        raise ConfigError(file, key, f"must be a mapping, got {type(v).__name__}")
-    return v
+@dataclass(frozen=True)
+class RealtimeGains:
+    """``realtime:``."""
+
+    #: after a stall, step through up to this much missed sim time at once
+    catch_up_ms: float = spec(2.0, lo=0.0, hi=100.0, unit="ms")
 
 
-_CAMERA_RANGES: dict[str, tuple[float | None, float | None, bool]] = {
-    "width": (1, 4096, True), "height": (1, 4096, True), "fx": (1e-6, None, False),
-    "fy": (1e-6, None, False), "cx": (None, None, False), "cy": (None, None, False),
-    "decimation": (1, 64, True), "depth_scale": (1e-6, 1.0, False),
-    "min_range_m": (0.0, None, False), "max_range_m": (1e-3, 65.0, False),
-    "pitch_down_deg": (-90.0, 90.0, False), "rate_hz": (1e-3, 1000.0, False),
-    "noise_std_at_1m": (0.0, 1.0, False), "dropout": (0.0, 1.0, False), "seed": (0, None, True),
-}
+@dataclass(frozen=True)
+class LockstepGains:
+    """``lockstep:``: the resend timeout's range (``runtime.udp.ResendTimer``)."""
+
+    timeout_s: float = spec(0.01, lo=1e-3, hi=3600.0, unit="s")  # the longest wait
+    min_timeout_s: float = spec(0.001, lo=1e-4, hi=3600.0, unit="s")  # the shortest
+    steps_per_command: int = spec(1, lo=1, hi=100)
+
+    def __post_init__(self) -> None:
+        if self.min_timeout_s > self.timeout_s:
+            raise ConfigError("<LockstepGains>", "min_timeout_s", f"{self.min_timeout_s} is "
+                              f"above timeout_s ({self.timeout_s})",
+                              f"[0.0001, {self.timeout_s}] s")
 
 
-def _render_mode(file: str, key: str, v: Any) -> CameraRender:
-    if v not in RENDER_MODES:
-        raise ConfigError(file, key, f"unknown value {v!r}", allowed=", ".join(RENDER_MODES))
-    return v  # type: ignore[no-any-return]
+@dataclass(frozen=True)
+class SimGains:
+    """``hw_config/gains/sim.yaml`` (the process module's ``Gains``): physics, watchdog,
+    holder, camera, real time, lockstep; every key optional."""
+
+    physics: PhysicsGains = spec(default_factory=PhysicsGains)
+    #: torques drop to zero this long (sim time) after the last command
+    watchdog_ms: float = spec(10.0, lo=0.5, hi=1000.0, unit="ms")
+    holder: HolderConfig = spec(default_factory=HolderConfig)
+    camera: CameraGains = spec(default_factory=CameraGains)
+    realtime: RealtimeGains = spec(default_factory=RealtimeGains)
+    lockstep: LockstepGains = spec(default_factory=LockstepGains)
+    #: shorter GIL hand-offs, for camera.render: thread only (None: Python's own)
+    gil_switch_interval_s: float | None = spec(2e-4, lo=1e-6, hi=0.1, unit="s")
+    push: PushConfig | None = None  # an external force on the pelvis
 
 
-def _camera(file: str, doc: dict[str, Any]) -> tuple[CameraConfig, bool, CameraRender]:
-    allowed = set(_CAMERA_RANGES) | {"enabled", "render", "see_robot", "mount_pos_m"}
-    _check_keys(file, "camera.", doc, allowed)
-    kw: dict[str, Any] = {}
-    for k, (lo, hi, integer) in _CAMERA_RANGES.items():
-        if k in doc:
-            kw[k] = _num(file, f"camera.{k}", doc[k], lo=lo, hi=hi, integer=integer)
-    if "see_robot" in doc:
-        kw["see_robot"] = _bool(file, "camera.see_robot", doc["see_robot"])
-    if "mount_pos_m" in doc:
-        v = doc["mount_pos_m"]
-        if not isinstance(v, list) or len(v) != 3:
-            raise ConfigError(file, "camera.mount_pos_m", f"must be [x, y, z], got {v!r}")
-        kw["mount_pos"] = tuple(_num(file, f"camera.mount_pos_m[{i}]", x) for i, x in enumerate(v))
-    cfg = CameraConfig(**kw)
-    if cfg.min_range_m >= cfg.max_range_m:
-        raise ConfigError(file, "camera.min_range_m", "must be below camera.max_range_m")
-    if cfg.out_width < 1 or cfg.out_height < 1:
-        raise ConfigError(file, "camera.decimation", "leaves an empty image")
-    enabled = _bool(file, "camera.enabled", doc.get("enabled", True))
-    render = _render_mode(file, "camera.render", doc.get("render", "auto"))
-    return cfg, enabled, render
-
-
-def load_gains(path: str | Path | None) -> SimSettings:
-    """Read ``hw_config/gains/sim.yaml`` (None: all defaults)."""
-    if path is None:
-        return SimSettings()
-    file = str(path)
-    try:
-        doc = safe_load(Path(path).read_text(encoding="utf-8")) or {}
-    except OSError as exc:
-        raise ConfigError(file, "gains_file", f"cannot read: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(file, "gains_file", f"not valid YAML: {exc}") from exc
-    doc = _mapping(file, "(top level)", doc)
-    _check_keys(file, "", doc, {"physics", "watchdog_ms", "holder", "camera", "realtime",
-                                "lockstep", "gil_switch_interval_s", "push"})
-    phys = _mapping(file, "physics", doc.get("physics"))
-    _check_keys(file, "physics.", phys, {"impratio", "pelvis_height_m", "foot_y_m"})
-    hold = _mapping(file, "holder", doc.get("holder"))
-    _check_keys(file, "holder.", hold, {f.name for f in fields(HolderConfig)})
-    hkw: dict[str, Any] = {}
-    if "timeconst_s" in hold:
-        hkw["timeconst_s"] = _num(file, "holder.timeconst_s", hold["timeconst_s"], lo=0.001,
-                                  hi=1.0)
-    if "dampratio" in hold:
-        hkw["dampratio"] = _num(file, "holder.dampratio", hold["dampratio"], lo=0.1, hi=10.0)
-    if "enabled" in hold:
-        hkw["enabled"] = _bool(file, "holder.enabled", hold["enabled"])
-    if "release_on" in hold:
-        if hold["release_on"] not in RELEASE_ON:
-            raise ConfigError(file, "holder.release_on", f"unknown value {hold['release_on']!r}",
-                              ", ".join(RELEASE_ON))
-        hkw["release_on"] = hold["release_on"]
-    sim = SimConfig(
-        push=_push(file, doc.get("push")),
-        watchdog_s=_num(file, "watchdog_ms", doc.get("watchdog_ms", 10.0), lo=0.5, hi=1000.0)
-        / 1000.0,
-        impratio=_num(file, "physics.impratio", phys.get("impratio", 10.0), lo=1.0, hi=1000.0),
-        pelvis_height=_num(file, "physics.pelvis_height_m", phys.get("pelvis_height_m", 0.95),
-                           lo=0.7, hi=1.05),
-        foot_y=_num(file, "physics.foot_y_m", phys.get("foot_y_m", 0.135), lo=0.0, hi=0.3),
-        holder=HolderConfig(**hkw),
-    )
-    cam, cam_on, render = _camera(file, _mapping(file, "camera", doc.get("camera")))
-    lock = _mapping(file, "lockstep", doc.get("lockstep"))
-    _check_keys(file, "lockstep.", lock, {"timeout_s", "min_timeout_s", "steps_per_command"})
-    rt = _mapping(file, "realtime", doc.get("realtime"))
-    _check_keys(file, "realtime.", rt, {"catch_up_ms"})
-    timeout_s = _num(file, "lockstep.timeout_s", lock.get("timeout_s", 0.01), lo=1e-3,
-                     hi=3600.0)
-    gil = doc.get("gil_switch_interval_s", 2e-4)
-    if gil is not None:
-        gil = _num(file, "gil_switch_interval_s", gil, lo=1e-6, hi=0.1)
+def settings_of(gains: SimGains, terrain: Terrain | None = None) -> SimSettings:
+    """What the sim runs on, from its gains file (and the terrain of its params)."""
+    phys, lock = gains.physics, gains.lockstep
+    sim = SimConfig(push=gains.push, watchdog_s=gains.watchdog_ms / 1000.0,
+                    impratio=phys.impratio, pelvis_height=phys.pelvis_height_m,
+                    foot_y=phys.foot_y_m, holder=gains.holder)
     return SimSettings(
-        sim=sim, camera=cam, camera_enabled=cam_on, camera_render=render,
-        catch_up_s=_num(file, "realtime.catch_up_ms", rt.get("catch_up_ms", 2.0), lo=0.0,
-                        hi=100.0) / 1000.0,
-        lockstep_timeout_s=timeout_s,
-        lockstep_min_timeout_s=_num(file, "lockstep.min_timeout_s",
-                                    lock.get("min_timeout_s", min(0.001, timeout_s)),
-                                    lo=1e-4, hi=timeout_s),
-        steps_per_command=int(_num(file, "lockstep.steps_per_command",
-                                   lock.get("steps_per_command", 1), lo=1, hi=100, integer=True)),
-        gil_switch_interval_s=gil,
+        terrain=terrain if terrain is not None else terrain_mod.flat(),
+        sim=sim, camera=gains.camera.config(), camera_enabled=gains.camera.enabled,
+        camera_render=gains.camera.render,  # type: ignore[arg-type]
+        catch_up_s=gains.realtime.catch_up_ms / 1000.0,
+        lockstep_timeout_s=lock.timeout_s, lockstep_min_timeout_s=lock.min_timeout_s,
+        steps_per_command=lock.steps_per_command,
+        gil_switch_interval_s=gains.gil_switch_interval_s,
     )
 
 
-def _push(file: str, v: Any) -> PushConfig | None:
-    """``push: {after_release_s, force_n: [x, y, z], duration_s}`` (or null: none)."""
-    if v is None:
-        return None
-    doc = _mapping(file, "push", v)
-    _check_keys(file, "push.", doc, {"after_release_s", "force_n", "duration_s"})
-    f = doc.get("force_n")
-    if not isinstance(f, list) or len(f) != 3:
-        raise ConfigError(file, "push.force_n", f"must be [x, y, z] in newtons, got {f!r}")
-    if "after_release_s" not in doc:
-        raise ConfigError(file, "push.after_release_s", "is required (sim seconds after the "
-                          "holder lets go)")
-    return PushConfig(
-        after_release_s=_num(file, "push.after_release_s", doc["after_release_s"], lo=0.0),
-        force_n=tuple(_num(file, f"push.force_n[{i}]", x, lo=-1e4, hi=1e4)  # type: ignore[misc]
-                      for i, x in enumerate(f)),
-        duration_s=_num(file, "push.duration_s", doc.get("duration_s", 0.1), lo=5e-4, hi=10.0),
-    )
+#: ``params.camera_render`` may also be ``off`` (YAML reads a bare off as false)
+CameraRenderParam = Literal["auto", "process", "thread", "inline", "off", False]
 
 
-#: the keys ``proc.params`` may hold
-PARAMS = {
-    "terrain": "a terrain YAML file (relative to hw_config) or a generator name",
-    "terrain_seed": "seed for a random terrain (stones, blocks)",
-    "drive": "auto | periodic | command",
-    "camera_render": "auto | process | thread | inline (overrides camera.render) | off (no "
-                     "depth camera: nothing renders or publishes DEPTH)",
-    "publish_footholds": "also publish the terrain's ground-truth footholds (output role "
-                         "'footholds', foothold_set_t) at 30 Hz of sim time",
-    "push": "an external force on the pelvis: {after_release_s, force_n: [x, y, z], "
-            "duration_s} (overrides the gains file's push)",
-    "holder_release": "first_command | first_nonzero_command | manual (overrides the gains "
-                      "file's holder.release_on; manual: only the packets' release flag, "
-                      "which the torque bridge sets with its params.release_after_s)",
-}
+@dataclass(frozen=True)
+class Params:
+    """The sim's ``params:`` (processes.yaml, a profile's ``overrides:``)."""
+
+    #: a terrain YAML file (relative to hw_config) or a generator name
+    terrain: str = "flat"
+    #: seed for a random terrain (stones, blocks)
+    terrain_seed: int | None = spec(None, lo=0)
+    #: auto: periodic in real time, by each command in lockstep
+    drive: Drive = "auto"
+    #: overrides camera.render; off: no depth camera (nothing renders or publishes DEPTH)
+    camera_render: CameraRenderParam | None = spec(None, choices=(*RENDER_MODES, "off"))
+    #: also publish the terrain's ground-truth footholds (output role 'footholds',
+    #: foothold_set_t) at 30 Hz of sim time
+    publish_footholds: bool = False
+    #: an external force on the pelvis (overrides the gains file's push)
+    push: PushConfig | None = None
+    #: overrides the gains file's holder.release_on; manual: only the packets' release flag,
+    #: which the torque bridge sets with its params.release_after_s
+    holder_release: ReleaseOn | None = None
 
 
-def resolve_terrain(proc: ProcessConfig, profile: Profile | None) -> Terrain:
+#: the gains file (``gains:``, hw_config/gains/sim.yaml), section by section
+Gains = SimGains
+
+
+def resolve_terrain(proc: ProcessConfig, profile: Profile | None,
+                    params: Params | None = None) -> Terrain:
     """``params.terrain``: a YAML file (relative to hw_config) or a generator name;
-    ``params.terrain_seed`` overrides the seed of a random terrain."""
+    ``params.terrain_seed`` overrides the seed of a random terrain. ``params``: ``proc``'s
+    as read by the builder (None: read here)."""
     file = str(proc.source_file)
-    p = proc.params
-    _check_keys(file, proc.key("params") + ".", p, set(PARAMS))
-    spec = p.get("terrain", "flat")
-    if not isinstance(spec, str):
-        raise ConfigError(file, proc.key("params", "terrain"), f"must be a string, got {spec!r}")
-    seed = p.get("terrain_seed")
-    if seed is not None:
-        seed = int(_num(file, proc.key("params", "terrain_seed"), seed, lo=0, integer=True))
-    if spec in terrain_mod.GENERATORS:
+    if params is None:
+        params = read(Params, proc.params, file, key=proc.key("params"))
+    name, seed = params.terrain, params.terrain_seed
+    if name in terrain_mod.GENERATORS:
         kwargs = {} if seed is None else {"seed": seed}
-        if seed is not None and spec not in ("stones", "blocks"):
+        if seed is not None and name not in ("stones", "blocks"):
             raise ConfigError(file, proc.key("params", "terrain_seed"),
-                              f"terrain {spec!r} is not random", allowed="stones, blocks")
-        return terrain_mod.generate(spec, **kwargs)
-    if not spec.endswith((".yaml", ".yml")):
-        raise ConfigError(file, proc.key("params", "terrain"), f"unknown terrain {spec!r}",
+                              f"terrain {name!r} is not random", allowed="stones, blocks")
+        return terrain_mod.generate(name, **kwargs)
+    if not name.endswith((".yaml", ".yml")):
+        raise ConfigError(file, proc.key("params", "terrain"), f"unknown terrain {name!r}",
                           allowed=", ".join(terrain_mod.GENERATORS) + " or a .yaml file")
-    path = profile.resolve(spec) if profile is not None else Path(spec)
+    path = profile.resolve(name) if profile is not None else Path(name)
     t = terrain_mod.load_terrain(path)
     if seed is not None:
         if t.seed is None:
@@ -607,43 +571,22 @@ class SimNode(Node):
         return s
 
 
-def make_node(proc: ProcessConfig, profile: Profile) -> Node:
-    """Build the sim node for ``proc`` under ``profile`` (mode, hw_config folder)."""
-    gains = proc.gains_file
-    if gains is not None and not Path(gains).is_absolute():
-        gains = profile.resolve(gains)
-    settings = load_gains(gains)
-    settings = replace(settings, terrain=resolve_terrain(proc, profile))
-    file = str(proc.source_file)
-    drive = proc.params.get("drive", "auto")
-    if drive not in ("auto", "periodic", "command"):
-        raise ConfigError(file, proc.key("params", "drive"), f"unknown value {drive!r}",
-                          allowed="auto, periodic, command")
-    v = proc.params.get("camera_render")
-    if v == "off" or v is False:  # (YAML reads a bare off as false) no depth camera: nothing
-        # renders or publishes DEPTH -- for profiles without perception
+def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: SimGains) -> Node:
+    """The sim node for ``proc`` under ``profile`` (mode, hw_config folder), of ``gains`` and
+    ``params`` (``runtime.builder.build_node`` reads and checks both)."""
+    settings = settings_of(gains, resolve_terrain(proc, profile, params))
+    if params.camera_render in ("off", False):  # no depth camera: nothing renders or
+        # publishes DEPTH -- for profiles without perception
         settings = replace(settings, camera_enabled=False)
-    elif v is not None:
-        if v not in RENDER_MODES:
-            raise ConfigError(file, proc.key("params", "camera_render"), f"unknown value {v!r}",
-                              allowed=", ".join((*RENDER_MODES, "off")))
-        settings = replace(settings, camera_render=v)
-    fh = _bool(file, proc.key("params", "publish_footholds"),
-               proc.params.get("publish_footholds", False))
-    if "push" in proc.params:  # a push set in the profile (hw_config/push.yaml) wins
-        try:
-            push = _push(file, proc.params["push"])
-        except ConfigError as exc:
-            raise ConfigError(file, proc.key("params", exc.key), exc.problem, exc.allowed) from None
-        settings = replace(settings, sim=replace(settings.sim, push=push))
-    if "holder_release" in proc.params:
-        rel = proc.params["holder_release"]
-        if rel not in RELEASE_ON:
-            raise ConfigError(file, proc.key("params", "holder_release"),
-                              f"unknown value {rel!r}", allowed=", ".join(RELEASE_ON))
+    elif params.camera_render is not None:
+        settings = replace(settings, camera_render=params.camera_render)
+    if params.push is not None:  # a push set in the profile (hw_config/push.yaml) wins
+        settings = replace(settings, sim=replace(settings.sim, push=params.push))
+    if params.holder_release is not None:
         settings = replace(settings, sim=replace(
-            settings.sim, holder=replace(settings.sim.holder, release_on=rel)))
+            settings.sim, holder=replace(settings.sim.holder, release_on=params.holder_release)))
     rate = proc.rate_hz if proc.rate_hz else 2000.0
-    node = SimNode(settings, profile.mode, rate, drive, fh, profile.rtf)
+    node = SimNode(settings, profile.mode, rate, params.drive, params.publish_footholds,
+                   profile.rtf)
     node.name = proc.name
     return node

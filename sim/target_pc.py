@@ -43,6 +43,7 @@ from runtime.cassie_packets import (
     float_block,
 )
 from runtime.pairing import DEFAULT_TOKEN, token_bytes
+from runtime.params import spec
 from sim.model import CassieIndices, build_model, standing_pose
 from sim.terrain import Terrain
 
@@ -62,8 +63,8 @@ class HolderConfig:
     """
 
     enabled: bool = True
-    timeconst_s: float = 0.01
-    dampratio: float = 1.0
+    timeconst_s: float = spec(0.01, lo=0.001, hi=1.0, unit="s")
+    dampratio: float = spec(1.0, lo=0.1, hi=10.0)
     release_on: ReleaseOn = "first_nonzero_command"
 
 
@@ -73,9 +74,9 @@ class PushConfig:
     of sim time after the holder lets go: a shove for push-recovery tests, or one that knocks
     the robot over to check that a launch reports the fall."""
 
-    after_release_s: float
-    force_n: tuple[float, float, float]
-    duration_s: float = 0.1
+    after_release_s: float = spec(lo=0.0, unit="s")  # (required: no default)
+    force_n: tuple[float, float, float] = spec(lo=-1e4, hi=1e4, unit="N")  # (required)
+    duration_s: float = spec(0.1, lo=5e-4, hi=10.0, unit="s")
 
 
 @dataclass(frozen=True)

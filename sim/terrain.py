@@ -13,6 +13,8 @@ robot starts at the origin facing +x, standing at ``start_z``.
 
 from __future__ import annotations
 
+import dataclasses
+import inspect
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
@@ -20,10 +22,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from runtime.config import safe_load
 from runtime.errors import ConfigError
+from runtime.params import read, spec
 
 #: Table I of Acosta & Posa: uniform bounds of the stepping-stone samples (metres).
 STONE_XY_OFFSET = 0.05
@@ -363,8 +364,6 @@ def from_boxes(
 GENERATORS: dict[str, Callable[..., Terrain]] = {
     "flat": flat, "stairs": stairs, "beam": beam, "stones": stones, "blocks": blocks,
 }
-_INT_PARAMS = {"count", "seed"}
-_MAY_BE_ZERO_OR_NEG = {"seed", "max_yaw_deg", "margin", "start_length"}
 
 
 def generate(name: str, foot_half_size: tuple[float, float] = (0.0, 0.0),
@@ -375,132 +374,130 @@ def generate(name: str, foot_half_size: tuple[float, float] = (0.0, 0.0),
 
 
 # -- YAML ----------------------------------------------------------------------------------
+# A terrain file, read by runtime.params: ``TerrainFile`` first (which terrain, the foot,
+# the margin), then the whole file as ``BoxesFile`` or as its generator's file class,
+# ``GENERATED_FILES[name]`` (its ``params`` a dataclass of the generator's keyword arguments,
+# their defaults the generator's own).
 
-_TOP_KEYS = {"terrain", "seed", "params", "boxes", "ground_z", "start_z", "foothold_margin",
-             "foot_half_size"}
-
-
-def _number(file: str, key: str, value: Any, *, integer: bool = False, positive: bool = True
-            ) -> float | int:
-    ok = isinstance(value, int) if integer else isinstance(value, (int, float))
-    if isinstance(value, bool) or not ok or not math.isfinite(float(value)):
-        kind = "an integer" if integer else "a number"
-        raise ConfigError(file, key, f"must be {kind}, got {value!r}")
-    if positive and value <= 0:
-        raise ConfigError(file, key, f"must be > 0, got {value!r}")
-    return int(value) if integer else float(value)
+#: generator parameters that are integers, and those that may be zero or negative
+_INT_PARAMS = {"count", "seed"}
+_MAY_BE_ZERO_OR_NEG = {"seed", "max_yaw_deg", "margin", "start_length"}
+TERRAIN_NAMES = (*GENERATORS, "boxes")
 
 
-def _vec3(file: str, key: str, value: Any, positive: bool) -> tuple[float, float, float]:
-    if not isinstance(value, list) or len(value) != 3:
-        raise ConfigError(file, key, f"must be a list of 3 numbers, got {value!r}")
-    return tuple(_number(file, f"{key}[{i}]", v, positive=positive)  # type: ignore[return-value]
-                 for i, v in enumerate(value))
+@dataclass(frozen=True, kw_only=True)
+class TerrainFile:
+    """The keys of every terrain file."""
+
+    terrain: str = spec(choices=TERRAIN_NAMES)  # (required)
+    foothold_margin: float = spec(0.02, lo=0.0, unit="m")
+    #: [half_length, half_width] of the foot: the footholds shrink by it (``foot_eroded``)
+    foot_half_size: tuple[float, float] = spec((0.0, 0.0), lo=0.0, unit="m")
+
+
+@dataclass(frozen=True)
+class BoxSpec:
+    """One box of ``terrain: boxes``: centre (world), full side lengths, yaw about z."""
+
+    center: tuple[float, float, float] = spec(unit="m")  # (required)
+    size: tuple[float, float, float] = spec(lo=0.0, lo_open=True, unit="m")  # (required)
+    yaw_deg: float = spec(0.0, unit="deg")
+
+
+@dataclass(frozen=True, kw_only=True)
+class BoxesFile(TerrainFile):
+    """``terrain: boxes``: hand-written boxes; footholds are their top faces."""
+
+    boxes: tuple[BoxSpec, ...] = spec()  # (required, at least one)
+    ground_z: float | None = spec(0.0, unit="m")  # None: no ground plane (a pit)
+    start_z: float = spec(0.0, unit="m")
+
+    def __post_init__(self) -> None:
+        if not self.boxes:
+            raise ConfigError("<BoxesFile>", "boxes", "must be a non-empty list of boxes",
+                              "a list of {center, size, yaw_deg}")
+
+
+def _param_field(name: str, default: Any) -> tuple[str, Any, Any]:
+    """A generator's keyword argument as a field: its type and range from its default."""
+    lo, lo_open = (None, False) if name in _MAY_BE_ZERO_OR_NEG else (0.0, True)
+    if name in _INT_PARAMS:
+        tp: Any = int
+    elif isinstance(default, tuple):
+        tp, lo = tuple[(float,) * len(default)], None  # type: ignore[misc]
+    else:
+        tp = float
+    return name, tp, spec(default, lo=lo, lo_open=lo_open)
+
+
+def _blocks_check(self: Any) -> None:
+    """``blocks``' params: an area of positive extent, size_min <= size_max."""
+    x0, x1, y0, y1 = self.area
+    if x0 >= x1 or y0 >= y1:
+        raise ConfigError("<BlocksParams>", "area", "needs x_min < x_max and y_min < y_max",
+                          "[x_min, x_max, y_min, y_max]")
+    if self.size_min > self.size_max:
+        raise ConfigError("<BlocksParams>", "size_min",
+                          f"{self.size_min} is above size_max {self.size_max}",
+                          f"(0.0, {self.size_max}]")
+
+
+def _kwargs(fn: Callable[..., Terrain]) -> dict[str, Any]:
+    """A generator's keyword arguments and their defaults."""
+    return {n: p.default for n, p in inspect.signature(fn).parameters.items()}
+
+
+def _params_class(name: str, fn: Callable[..., Terrain]) -> type:
+    """A frozen dataclass of ``fn``'s keyword arguments but ``margin`` (``foothold_margin``)
+    and ``seed`` (a key of the file's own)."""
+    args = [_param_field(n, d) for n, d in _kwargs(fn).items() if n not in ("margin", "seed")]
+    ns = {"__post_init__": _blocks_check} if name == "blocks" else {}
+    return dataclasses.make_dataclass(f"{name.capitalize()}Params", args, frozen=True,
+                                      namespace=ns)
+
+
+#: generator name -> the dataclass of its ``params:`` in a terrain file
+GENERATOR_PARAMS: dict[str, type] = {n: _params_class(n, fn) for n, fn in GENERATORS.items()}
+
+
+def _generated_file(name: str) -> type:
+    """The file of terrain ``name``: ``params`` its generator's, and ``seed`` if it has one."""
+    extra: list[tuple[str, Any, Any]] = [
+        ("params", GENERATOR_PARAMS[name], spec(default_factory=GENERATOR_PARAMS[name]))]
+    defaults = _kwargs(GENERATORS[name])
+    if "seed" in defaults:
+        extra.append(("seed", int, spec(defaults["seed"], lo=0)))
+    return dataclasses.make_dataclass(f"{name.capitalize()}File", extra, bases=(TerrainFile,),
+                                      frozen=True, kw_only=True)
+
+
+#: generator name -> the dataclass of a terrain file of it
+GENERATED_FILES: dict[str, type] = {n: _generated_file(n) for n in GENERATORS}
 
 
 def load_terrain(path: str | Path) -> Terrain:
     """Read a terrain YAML file; raises ``ConfigError`` naming the file and key on bad input.
 
-    Either ``terrain: NAME`` (a generator, with ``params`` and an optional ``seed``) or
-    ``terrain: boxes`` with a ``boxes`` list of ``{center, size, yaw_deg}``; either may give
-    ``foot_half_size: [half_length, half_width]`` to shrink the footholds for the foot.
+    Either ``terrain: NAME`` (a generator, with ``params`` and, for a random one, ``seed``)
+    or ``terrain: boxes`` with a ``boxes`` list of ``{center, size, yaw_deg}``; either may
+    give ``foot_half_size: [half_length, half_width]`` to shrink the footholds for the foot.
     """
+    from runtime.config import load_yaml
+
     file = str(path)
-    try:
-        doc = safe_load(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(file, "terrain", f"cannot read the file: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(file, "terrain", f"not valid YAML: {exc}") from exc
-    if not isinstance(doc, dict):
-        raise ConfigError(file, "terrain", "the file must hold a mapping with a 'terrain' key")
-    for key in doc:
-        if key not in _TOP_KEYS:
-            raise ConfigError(file, str(key), "unknown key", allowed=", ".join(sorted(_TOP_KEYS)))
-    name = doc.get("terrain")
-    allowed_names = ", ".join([*GENERATORS, "boxes"])
-    if name not in GENERATORS and name != "boxes":
-        raise ConfigError(file, "terrain", f"unknown terrain {name!r}", allowed=allowed_names)
-    margin = doc.get("foothold_margin", 0.02)
-    margin = _number(file, "foothold_margin", margin, positive=False)
-    if margin < 0:
-        raise ConfigError(file, "foothold_margin", f"must be >= 0, got {margin!r}")
-    foot = doc.get("foot_half_size", [0.0, 0.0])
-    if not isinstance(foot, list) or len(foot) != 2:
-        raise ConfigError(file, "foot_half_size",
-                          f"must be [half_length, half_width], got {foot!r}")
-    half_length, half_width = (float(_number(file, f"foot_half_size[{i}]", v, positive=False))
-                               for i, v in enumerate(foot))
-    if half_length < 0 or half_width < 0:
-        raise ConfigError(file, "foot_half_size", f"must be >= 0, got {foot!r}")
-
+    doc = load_yaml(Path(path))
+    # which terrain first (required, a known one): its other keys depend on it
+    name = read(TerrainFile, {k: v for k, v in doc.items() if k == "terrain"}, file).terrain
     if name == "boxes":
-        for key in ("params", "seed"):
-            if key in doc:
-                raise ConfigError(file, key, "not used by 'terrain: boxes'",
-                                  allowed="boxes, ground_z, start_z, foothold_margin, "
-                                  "foot_half_size")
-        raw = doc.get("boxes")
-        if not isinstance(raw, list) or not raw:
-            raise ConfigError(file, "boxes", "must be a non-empty list of boxes")
-        boxes = []
-        for i, b in enumerate(raw):
-            k = f"boxes[{i}]"
-            if not isinstance(b, dict):
-                raise ConfigError(file, k, "must be a mapping with center, size, yaw_deg")
-            for bk in b:
-                if bk not in ("center", "size", "yaw_deg"):
-                    raise ConfigError(file, f"{k}.{bk}", "unknown key",
-                                      allowed="center, size, yaw_deg")
-            if "center" not in b or "size" not in b:
-                raise ConfigError(file, k, "needs both 'center' and 'size'")
-            center = _vec3(file, f"{k}.center", b["center"], positive=False)
-            size = _vec3(file, f"{k}.size", b["size"], positive=True)
-            yaw = _number(file, f"{k}.yaw_deg", b.get("yaw_deg", 0.0), positive=False)
-            boxes.append(Box(center, size, math.radians(yaw)))
-        ground = doc.get("ground_z", 0.0)
-        if ground is not None:
-            ground = _number(file, "ground_z", ground, positive=False)
-        start = _number(file, "start_z", doc.get("start_z", 0.0), positive=False)
-        terrain = from_boxes(boxes, ground_z=ground, start_z=float(start), margin=float(margin))
-        return foot_eroded(terrain, half_length, half_width)
-
-    for key in ("boxes", "ground_z", "start_z"):
-        if key in doc:
-            raise ConfigError(file, key, f"only for 'terrain: boxes', not {name!r}")
-    gen = GENERATORS[name]
-    defaults = {k: v for k, v in _defaults(gen).items() if k != "margin"}
-    params = doc.get("params") or {}
-    if not isinstance(params, dict):
-        raise ConfigError(file, "params", f"must be a mapping, got {params!r}")
-    kwargs: dict[str, Any] = {"margin": float(margin)}
-    for key, value in params.items():
-        k = f"params.{key}"
-        if key not in defaults or key == "seed":
-            raise ConfigError(file, k, f"not a parameter of {name!r}",
-                              allowed=", ".join(p for p in defaults if p != "seed"))
-        if key == "area":
-            if not isinstance(value, list) or len(value) != 4:
-                raise ConfigError(file, k, "must be [x_min, x_max, y_min, y_max]")
-            vals = [_number(file, f"{k}[{i}]", v, positive=False) for i, v in enumerate(value)]
-            if vals[0] >= vals[1] or vals[2] >= vals[3]:
-                raise ConfigError(file, k, "needs x_min < x_max and y_min < y_max")
-            kwargs[key] = tuple(vals)
-            continue
-        kwargs[key] = _number(file, k, value, integer=key in _INT_PARAMS,
-                              positive=key not in _MAY_BE_ZERO_OR_NEG)
-    if "seed" in doc:
-        if "seed" not in defaults:
-            raise ConfigError(file, "seed", f"terrain {name!r} is not random")
-        kwargs["seed"] = _number(file, "seed", doc["seed"], integer=True, positive=False)
-    if name == "blocks":
-        lo, hi = kwargs.get("size_min", 0.25), kwargs.get("size_max", 0.6)
-        if lo > hi:
-            raise ConfigError(file, "params.size_min", f"{lo} is above size_max {hi}")
-    return foot_eroded(gen(**kwargs), half_length, half_width)
-
-
-def _defaults(fn: Callable[..., Terrain]) -> dict[str, Any]:
-    import inspect
-
-    return {n: p.default for n, p in inspect.signature(fn).parameters.items()}
+        b = read(BoxesFile, doc, file)
+        boxes = [Box(x.center, x.size, math.radians(x.yaw_deg)) for x in b.boxes]
+        terrain = from_boxes(boxes, ground_z=b.ground_z, start_z=b.start_z,
+                             margin=b.foothold_margin)
+        return foot_eroded(terrain, *b.foot_half_size)
+    if "seed" in doc and "seed" not in _kwargs(GENERATORS[name]):
+        raise ConfigError(file, "seed", f"terrain {name!r} is not random", "stones, blocks")
+    g = read(GENERATED_FILES[name], doc, file)
+    kwargs = {f.name: getattr(g.params, f.name) for f in dataclasses.fields(g.params)}
+    if hasattr(g, "seed"):
+        kwargs["seed"] = g.seed
+    return foot_eroded(GENERATORS[name](margin=g.foothold_margin, **kwargs), *g.foot_half_size)

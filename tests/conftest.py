@@ -54,6 +54,31 @@ def profile_bus(profile: str | Path, source: str = "test") -> Any:
     return Bus.for_profile(load_profile(profile), source=source)
 
 
+def one_process_profile(tmp_path: Path, name: str, params: dict[str, Any] | None = None,
+                        gains: Callable[[dict[str, Any]], object] | None = None) -> Path:
+    """A profile file in ``tmp_path`` running only ``name`` of hw_config/processes.yaml, its
+    ``params:`` replaced by ``params`` (None: as there) and its gains file a copy of the
+    shipped one in ``tmp_path/gains.yaml``, first changed by ``gains(doc)``. Load it with
+    ``runtime.config.load_profile`` and build with ``runtime.builder.build_node``."""
+    import yaml
+
+    hw = REPO / "hw_config"
+    block = dict(yaml.safe_load((hw / "processes.yaml").read_text())["processes"][name])
+    block.pop("depends_on", None)
+    if params is not None:
+        block["params"] = params
+    doc = yaml.safe_load((hw / block["gains"]).read_text()) or {}
+    if gains is not None:
+        gains(doc)
+    (tmp_path / "gains.yaml").write_text(yaml.safe_dump(doc))
+    block["gains"] = str(tmp_path / "gains.yaml")
+    profile = {"profile": "one", "include": [str(hw / "hosts.yaml"), str(hw / "channels.yaml")],
+               "mode": "realtime", "processes": {name: block}, "launch": [name]}
+    path = tmp_path / "one.yaml"
+    path.write_text(yaml.safe_dump(profile))
+    return path
+
+
 def cassie(*args: str, env: dict[str, str] | None = None, **kw: Any) -> subprocess.Popen[str]:
     """Start ``cassie ARGS`` as a real child process (its own process group)."""
     e = dict(os.environ)

@@ -92,6 +92,14 @@ def write_overlay(profile_path: Path, items: list[str], folder: Path) -> Path:
                 gains_docs[head] = (src, yaml.safe_load(src.read_text()) or {})
             src, doc = gains_docs[head]
             _set_in(doc, path[2:], value, str(src), item)
+            # a variant that sets the key itself would win over the top level
+            # (runtime.params.load): the override goes there too, whichever variant runs
+            for variant in (doc.get("variants") or {}).values():
+                node = variant
+                for part in path[2:-1]:
+                    node = node.get(part) if isinstance(node, dict) else None
+                if isinstance(node, dict) and path[-1] in node:
+                    node[path[-1]] = value
             continue
         entry = procs.setdefault(head, {})
         if path[1] == "params" and len(path) > 2:

@@ -8,9 +8,9 @@ elevation map when one is available, Section IX-A-3), the previous and next swit
 gait state and the ankle torque, plus the solve internals. A failed solve keeps the previous
 plan, as on the robot. Time is the robot state's ``utime``: no wall clock decides anything.
 
-Footholds come from ``params.footholds``: ``channel`` (the foothold set from S3, or from any
-ground-truth publisher), ``flat`` (level ground around the robot) or ``terrain:NAME_OR_FILE``
-(the ground-truth footholds of a terrain, as the sim builds them).
+Footholds come from ``params.footholds``: ``channel`` (the foothold set from S3, or the
+sim's ground truth of its terrain: ``publish_footholds``) or ``flat`` (level ground around
+the robot). (A robot process knows no terrain file: the truth comes over the bus.)
 
 Footholds wholly more than ``params.foothold_max_height_m`` (default 0.35 m) above or below
 the stance foot are left out of the solve (ours, not in the paper): the MPFC's costs do not see
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -39,8 +40,8 @@ from processes.mpfc.footholds import Foothold
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver
 from runtime.config_types import ProcessConfig, Profile
-from runtime.errors import ConfigError
 from runtime.node import Node
+from runtime.params import spec
 
 LEFT, RIGHT = 0, 1
 GAIT_SS = (0, 1)  # single stance on left / right
@@ -48,6 +49,26 @@ GAIT_DS = (2, 3)  # double stance after a left / right touchdown
 GAIT_STANDING = 4
 STATUS = {"optimal": 0, "time_limited": 1, "infeasible": 2}
 DEFAULT_MAX_HEIGHT_M = 0.35  # two 15 cm stairs (the horizon's second step) and some margin
+VARIANTS = ("hardware", "simulation")  # the columns of Table V
+
+#: the gains file (hw_config/gains/mpfc.yaml): Table V, in the column ``Params.variant`` names
+Gains = MpfcParams
+
+
+@dataclass(frozen=True)
+class Params:
+    """The MPFC's ``params:`` (hw_config/processes.yaml, and the profiles' overrides)."""
+
+    variant: str = spec("simulation", choices=VARIANTS)  # the column of Table V
+    #: where the footholds come from: channel | flat (module docstring)
+    footholds: str = spec("channel", choices=("channel", "flat"))
+    #: desired velocity [vx, vy] until the first command, pelvis-yaw frame
+    default_velocity: tuple[float, float] = spec((0.375, 0.0), unit="m/s")
+    #: footholds wholly farther than this above or below the stance foot are left out (ours,
+    #: module docstring); 0: no limit
+    foothold_max_height_m: float = spec(DEFAULT_MAX_HEIGHT_M, lo=0.0, unit="m")
+    #: the next footstep's height from the elevation map when there is one (Section IX-A-3)
+    height_lookup: bool = True
 
 
 def within_height(footholds: list[Foothold], z: float, max_dz: float) -> list[Foothold]:
@@ -346,7 +367,8 @@ class MpfcNode(Node):
         return f"{self.solves} solves, {self.failures} kept the previous plan; {self.last_status}"
 
 
-def _static_footholds(spec: str, proc: ProcessConfig, profile: Profile) -> list[Foothold]:
+def _static_footholds(spec: str) -> list[Foothold]:
+    """The footholds of a fixed source (``flat``), or [] for the channel's."""
     if spec == "flat":
         # one square with no edge within any run: 1 km each way is 45 min of walking (a 50 m
         # one ended long live runs: Cassie stepped in place at x = 50 m, its next footstep
@@ -355,80 +377,22 @@ def _static_footholds(spec: str, proc: ProcessConfig, profile: Profile) -> list[
         return [
             Foothold.from_polygon(np.array([[-big, -big], [big, -big], [big, big], [-big, big]]))
         ]
-    if spec.startswith("terrain:"):
-        from sim import terrain as sim_terrain
-
-        name = spec.split(":", 1)[1]
-        path = profile.resolve(name)
-        if path.exists():
-            ter = sim_terrain.load_terrain(path)
-        else:
-            try:
-                ter = sim_terrain.generate(name)
-            except (KeyError, ValueError, TypeError) as exc:
-                raise ConfigError(
-                    str(proc.source_file),
-                    proc.key("params", "footholds"),
-                    f"no terrain file or generator {name!r} ({exc})",
-                    allowed="terrain:<file under hw_config/> or terrain:<generator>",
-                ) from exc
-        return footholds_from_msg(sim_terrain.foothold_set_msg(ter))
     return []
 
 
-def make_node(proc: ProcessConfig, profile: Profile) -> Node:
+def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: MpfcParams) -> Node:
     """Build the MPFC node from ``hw_config`` (gains file: Table V; params: sources)."""
-    variant = str(proc.params.get("variant", "simulation"))
-    if variant not in ("hardware", "simulation"):
-        raise ConfigError(
-            str(proc.source_file),
-            proc.key("params", "variant"),
-            f"{variant!r} is not a column of Table V",
-            "hardware, simulation",
-        )
-    params = (
-        MpfcParams.from_yaml(proc.gains_file, variant)
-        if proc.gains_file
-        else MpfcParams.from_yaml(variant=variant)
-    )
-    spec = str(proc.params.get("footholds", "channel"))
-    if not (spec in ("channel", "flat") or spec.startswith("terrain:")):
-        raise ConfigError(
-            str(proc.source_file),
-            proc.key("params", "footholds"),
-            f"unknown foothold source {spec!r}",
-            "channel, flat, terrain:NAME",
-        )
-    vel = proc.params.get("default_velocity", [0.375, 0.0])
-    if (
-        not isinstance(vel, list)
-        or len(vel) != 2
-        or not all(isinstance(x, (int, float)) for x in vel)
-    ):
-        raise ConfigError(
-            str(proc.source_file),
-            proc.key("params", "default_velocity"),
-            f"must be [vx, vy] in m/s, got {vel!r}",
-        )
-    max_dz = proc.params.get("foothold_max_height_m", DEFAULT_MAX_HEIGHT_M)
-    if isinstance(max_dz, bool) or not isinstance(max_dz, (int, float)) or not (
-            math.isfinite(max_dz) and max_dz >= 0.0):
-        raise ConfigError(
-            str(proc.source_file),
-            proc.key("params", "foothold_max_height_m"),
-            f"must be a height in m >= 0 (0: no limit), got {max_dz!r}",
-        )
     if profile.mode == "lockstep":
         # lockstep results must not depend on how busy the machine is: no wall-clock budget
         # (the search is finite: at most enumerate_max_leaves leaves, or the B&B tree)
-        params = dataclasses.replace(params, time_limit_ms=math.inf)
+        gains = dataclasses.replace(gains, time_limit_ms=math.inf)
     elif profile.rtf < 1.0:  # a slower machine running at a fraction of real time
-        params = dataclasses.replace(params, time_limit_ms=params.time_limit_ms / profile.rtf)
+        gains = dataclasses.replace(gains, time_limit_ms=gains.time_limit_ms / profile.rtf)
     return MpfcNode(
-        params,
-        "channel" if spec == "channel" else "static",
-        _static_footholds(spec, proc, profile),
-        (float(vel[0]), float(vel[1])),
-        bool(proc.params.get("height_lookup", True)),
-        float(max_dz),
+        gains,
+        "channel" if params.footholds == "channel" else "static",
+        _static_footholds(params.footholds),
+        params.default_velocity,
+        params.height_lookup,
+        params.foothold_max_height_m,
     )

@@ -20,11 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from runtime.params import load
+
 from .model import CassieModel
 from .qp import OscQP
 from .safety import SafetyMonitor
 from .standing import StandingController
-from .tasks import OscParams, TaskLog
+from .tasks import DEFAULT_GAINS_FILE, OscGains, OscParams, TaskLog
 from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, GaitPhase, WalkingController
 from .walking import STANDING as GAIT_STANDING
 
@@ -75,7 +77,10 @@ class OscController:
     def __init__(self, params: OscParams | None = None, model: CassieModel | None = None,
                  gains_file: str | Path | None = None) -> None:
         t_setup = time.perf_counter()
-        self.params = params if params is not None else OscParams.from_yaml(gains_file)
+        if params is None:  # the gains file (default hw_config/gains/osc.yaml)
+            path = gains_file if gains_file is not None else DEFAULT_GAINS_FILE
+            params = OscParams.from_gains(load(OscGains, path))
+        self.params = params
         self.model = model if model is not None else CassieModel()
         m = self.model
         self.qp = OscQP(m, self.params.qp)

@@ -9,24 +9,23 @@ N m in actuator order) and ``debug`` (osc_debug_t), both stamped with the state'
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from lcmtypes import command_t, mpfc_output_t, osc_debug_t, robot_state_t, torque_command_t
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
-from runtime.config import param_bool, param_number
 from runtime.config_types import ProcessConfig, Profile
-from runtime.errors import ConfigError
 from runtime.node import HEALTH_FAULT, HEALTH_OK, HEALTH_WARNING, Context, Inbox, Node
+from runtime.params import spec
 
 from .controller import SAFE, OscController
 from .fallback import PlanFallback
 from .model import CassieModel
-from .tasks import DEFAULT_GAINS_FILE, OscParams
+from .tasks import OscGains, OscParams
 from .walking import STANDING as GAIT_STANDING
 
-_KNOWN_PARAMS = ("gains_file", "start", "hold_until_plan", "stand_first_s")
 #: ticks of the set-up warm-up (0.5 ms each): standing, hand-over, single and double stance
 WARM_UP_TICKS = 2000
 START_MODES = ("walk", "stand")
@@ -217,27 +216,24 @@ class OscNode(Node):
         return self.controller is not None and self.controller.mode == SAFE
 
 
-def make_node(proc: ProcessConfig, profile: Profile) -> Node:
-    """Build the OSC node: gains from ``proc.gains_file`` (or ``params.gains_file``), else
-    ``hw_config/gains/osc.yaml``."""
-    for key in proc.params:
-        if key not in _KNOWN_PARAMS:
-            raise ConfigError(str(proc.source_file), proc.key("params", key), "unknown parameter",
-                              ", ".join(_KNOWN_PARAMS))
-    start = proc.params.get("start", "walk")
-    if start not in START_MODES:
-        raise ConfigError(str(proc.source_file), proc.key("params", "start"),
-                          f"unknown value {start!r}", ", ".join(START_MODES))
-    path = proc.gains_file
-    if path is None and "gains_file" in proc.params:
-        raw = proc.params["gains_file"]
-        if not isinstance(raw, str):
-            raise ConfigError(str(proc.source_file), proc.key("params", "gains_file"),
-                              f"not a path: {raw!r}", "a path relative to hw_config")
-        path = profile.resolve(raw)
-    if path is None:
-        candidate = profile.resolve("gains/osc.yaml")
-        path = candidate if candidate.exists() else DEFAULT_GAINS_FILE
-    hold = param_bool(proc, "hold_until_plan", False)
-    stand = param_number(proc, "stand_first_s", default=0.0, lo=0.0, hi=60.0)
-    return OscNode(OscParams.from_yaml(path), start, hold, float(stand))
+@dataclass(frozen=True)
+class Params:
+    """The OSC's ``params:`` (processes.yaml, a profile's ``overrides:``)."""
+
+    #: before the radio's first command: walk (MPFC's default velocity) or stand
+    start: str = spec("walk", choices=START_MODES)
+    #: zero torque (mode 3, off: the holder keeps the robot) until the MPFC's first plan
+    hold_until_plan: bool = False
+    #: then stand this long (sim time) before it may walk
+    stand_first_s: float = spec(0.0, lo=0.0, hi=60.0, unit="s")
+
+
+#: the gains file (``gains:``, hw_config/gains/osc.yaml), section by section
+Gains = OscGains
+
+
+def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: OscGains) -> Node:
+    """The OSC of ``gains`` and ``params`` (``runtime.builder.build_node`` reads and checks
+    both)."""
+    return OscNode(OscParams.from_gains(gains), params.start, params.hold_until_plan,
+                   params.stand_first_s)

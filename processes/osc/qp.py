@@ -27,23 +27,29 @@ import numba
 import numpy as np
 import piqp
 
+from runtime.params import spec
+
 from .activeset import solve_dual_active_set
 from .model import CassieModel
 
 
-@dataclass
+@dataclass(frozen=True)
 class QpWeights:
-    """Regularisation weights of (14a) that are not task weights (see hw_config/gains/osc.yaml)."""
+    """Regularisation weights of (14a) that are not task weights (``qp:`` of
+    hw_config/gains/osc.yaml)."""
 
-    contact_slack: float = 2000.0  # ||eps||^2 of (14d)
-    torque: float = 1e-5  # ||u||^2
-    force: float = 1e-7  # ||lambda_c||^2
-    accel: float = 1e-5  # ||dv||^2
-    torque_change: float = 1e-4  # ||u - u_prev||^2: conditions the QP without biasing tracking
-    force_change: float = 1e-6  # ||lambda_c - lambda_c_prev||^2
-    mu: float = 0.6  # friction coefficient of the pyramid (14e), inscribed (|fx|, |fy| <= mu fz)
-    fz_max: float = 1500.0  # N per contact point
-    standing_fz_min: float = 15.0  # N per contact point while standing: both feet stay loaded
+    contact_slack: float = spec(2000.0, lo=0.0)  # ||eps||^2 of (14d)
+    torque: float = spec(1e-5, lo=0.0)  # ||u||^2
+    force: float = spec(1e-7, lo=0.0)  # ||lambda_c||^2
+    accel: float = spec(1e-5, lo=0.0)  # ||dv||^2
+    #: ||u - u_prev||^2: conditions the QP without biasing tracking
+    torque_change: float = spec(1e-4, lo=0.0)
+    force_change: float = spec(1e-6, lo=0.0)  # ||lambda_c - lambda_c_prev||^2
+    #: friction coefficient of the pyramid (14e), inscribed (|fx|, |fy| <= mu fz)
+    mu: float = spec(0.6, lo=0.0, hi=2.0, lo_open=True)
+    fz_max: float = spec(1500.0, lo=0.0, unit="N")  # per contact point
+    #: per contact point while standing: both feet stay loaded
+    standing_fz_min: float = spec(15.0, lo=0.0, unit="N")
 
 
 @dataclass

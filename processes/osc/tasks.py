@@ -12,22 +12,113 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
 
 import numba
 import numpy as np
-import yaml
 
-from runtime.config import safe_load
 from runtime.errors import ConfigError
+from runtime.params import spec
 
 from .qp import ROW_COM, ROW_CONTACT, ROW_DOF, QpWeights
 
 DEFAULT_GAINS_FILE = Path(__file__).resolve().parents[2] / "hw_config" / "gains" / "osc.yaml"
 
+SPRING_MODES = ("rigid_swing", "measured")
+SWING_TOE_MODES = ("plane", "level")
 
+
+# ---------------------------------------------------------------------- the gains file
+# hw_config/gains/osc.yaml as runtime.params reads it (the process module's ``Gains``):
+# ``OscGains``, section by section; ``OscParams.from_gains`` is what the controller runs on.
+Vec3 = tuple[float, float, float]
+Vec10 = tuple[float, float, float, float, float, float, float, float, float, float]
+
+
+@dataclass(frozen=True)
+class AxisGains3:
+    """A task with 3 axes: weight W_i in (14a) and task-space PD gains, one per axis."""
+
+    w: Vec3 = spec((0.0, 0.0, 0.0), lo=0.0)
+    kp: Vec3 = spec((0.0, 0.0, 0.0), lo=0.0)
+    kd: Vec3 = spec((0.0, 0.0, 0.0), lo=0.0)
+
+
+@dataclass(frozen=True)
+class AxisGains1:
+    """A task with 1 axis (a joint, the toe angle): weight and PD gains."""
+
+    w: float = spec(0.0, lo=0.0)
+    kp: float = spec(0.0, lo=0.0)
+    kd: float = spec(0.0, lo=0.0)
+
+
+@dataclass(frozen=True)
+class WalkingGains:
+    """``walking:``: the tasks of Table VII and the output synthesis of Section V."""
+
+    pelvis: AxisGains3  # roll, pitch, yaw rate
+    com: AxisGains3
+    swing_foot: AxisGains3
+    toe: AxisGains1
+    hip_yaw: AxisGains1
+    ankle_torque_weight: float = spec(10.0, lo=0.0)
+    com_height: float = spec(0.85, lo=0.5, hi=1.1, unit="m")  # H of (22), Table V
+    com_filter_hz: float = spec(100.0, lo=1.0, hi=1000.0, unit="Hz")  # Section V-A
+    com_clip: float = spec(0.025, lo=0.0, hi=0.2, unit="m")  # |z_des - z_com|, Section V-A
+    swing_clearance: float = spec(0.15, lo=0.0, hi=0.4, unit="m")  # c of Section V-B-1
+    swing_degree: int = spec(8, lo=7, hi=12)  # polynomial degree of the swing QP (23)
+    swing_step_up_min: float = spec(0.0, lo=0.0, hi=1.0, unit="m")
+    swing_step_up_clearance: float = spec(0.06, lo=0.0, hi=0.4, unit="m")
+    swing_step_up_height: float = spec(0.04, lo=0.0, hi=0.2, unit="m")
+    swing_lift_tau: float = spec(0.25, lo=0.1, hi=0.45)  # fraction of T
+    swing_approach_tau: float = spec(0.8, lo=0.55, hi=0.9)  # fraction of T
+    swing_toe: str = spec("plane", choices=SWING_TOE_MODES)
+
+
+@dataclass(frozen=True)
+class StandingGains:
+    """``standing:``: CoM over the centre of the feet, pelvis level, hip yaw straight."""
+
+    com: AxisGains3
+    pelvis: AxisGains3
+    hip_yaw: AxisGains1
+    com_height: float = spec(0.80, lo=0.5, hi=1.1, unit="m")
+    com_offset_x: float = spec(0.0, lo=-0.1, hi=0.1, unit="m")
+    height_rate: float = spec(0.1, lo=0.0, hi=1.0, unit="m/s")
+    xy_ramp_s: float = spec(1.0, lo=0.0, hi=10.0, unit="s")
+
+
+@dataclass(frozen=True)
+class SafetyGains:
+    """``safety:``: fault thresholds and the safe-mode joint damping."""
+
+    fall_height: float = spec(0.6, lo=0.0, hi=1.0, unit="m")
+    plan_timeout_s: float = spec(0.2, lo=0.001, hi=5.0, unit="s")
+    plan_fallback_s: float = spec(0.1, lo=0.0, hi=5.0, unit="s")  # at most plan_timeout_s
+    recover_s: float = spec(0.01, lo=0.0005, hi=10.0, unit="s")
+    damping: Vec10 = spec((10.0, 10.0, 10.0, 10.0, 2.0) * 2, lo=0.0, unit="N m s/rad")
+
+    def __post_init__(self) -> None:
+        if self.plan_fallback_s > self.plan_timeout_s:
+            raise ConfigError("<SafetyGains>", "plan_fallback_s",
+                              f"{self.plan_fallback_s} is above plan_timeout_s "
+                              f"({self.plan_timeout_s})", f"[0.0, {self.plan_timeout_s}] s")
+
+
+@dataclass(frozen=True)
+class OscGains:
+    """``hw_config/gains/osc.yaml``: QP weights, walking and standing tasks, safety."""
+
+    qp: QpWeights
+    walking: WalkingGains
+    standing: StandingGains
+    safety: SafetyGains = spec(default_factory=SafetyGains)
+    springs: str = spec("rigid_swing", choices=SPRING_MODES)
+
+
+# ---------------------------------------------------------------------- what the OSC runs on
 @dataclass
-class Gains:
+class TaskGains:
     """Weight and PD gains of one task, one entry per task axis."""
 
     w: np.ndarray
@@ -36,6 +127,12 @@ class Gains:
 
     def __post_init__(self) -> None:
         self.refresh()
+
+    @classmethod
+    def of(cls, g: AxisGains3 | AxisGains1) -> TaskGains:
+        """The arrays of a task's gains in the file."""
+        return cls(*(np.array(v if isinstance(v, tuple) else (v,), dtype=float)
+                     for v in (g.w, g.kp, g.kd)))
 
     def refresh(self) -> None:
         """Update the copies used on the hot path (call after editing the arrays)."""
@@ -51,11 +148,11 @@ class Gains:
 class WalkingParams:
     """Walking tasks (Table VII) and the output-synthesis constants of Section V."""
 
-    pelvis: Gains
-    com: Gains
-    swing_foot: Gains
-    toe: Gains
-    hip_yaw: Gains
+    pelvis: TaskGains
+    com: TaskGains
+    swing_foot: TaskGains
+    toe: TaskGains
+    hip_yaw: TaskGains
     ankle_torque_weight: float = 10.0
     com_height: float = 0.85  # H of (22), Table V
     com_filter_hz: float = 100.0  # low-pass on (k_x, k_y), Section V-A
@@ -77,9 +174,9 @@ class WalkingParams:
 class StandingParams:
     """Standing: CoM over the centre of the feet, pelvis level, hip yaw straight."""
 
-    com: Gains
-    pelvis: Gains
-    hip_yaw: Gains
+    com: TaskGains
+    pelvis: TaskGains
+    hip_yaw: TaskGains
     com_height: float = 0.80
     com_offset_x: float = 0.0  # CoM target ahead of the feet's centre (m)
     height_rate: float = 0.1  # m/s ramp of the CoM height target from its start value
@@ -102,13 +199,24 @@ class SafetyParams:
     )
 
 
-SPRING_MODES = ("rigid_swing", "measured")
-SWING_TOE_MODES = ("plane", "level")
+def _runtime(cls: type, g: object) -> object:
+    """``cls`` with the values of the section ``g`` of the same field names: a task's gains
+    as ``TaskGains``, a vector as an array."""
+    kw = {}
+    for f in fields(cls):
+        v = getattr(g, f.name)
+        if isinstance(v, (AxisGains3, AxisGains1)):
+            v = TaskGains.of(v)
+        elif isinstance(v, tuple):
+            v = np.array(v, dtype=float)
+        kw[f.name] = v
+    return cls(**kw)
 
 
 @dataclass
 class OscParams:
-    """Everything the OSC reads from ``hw_config/gains/osc.yaml``."""
+    """Everything the OSC runs on: ``hw_config/gains/osc.yaml`` (``from_gains``), its task
+    gains as arrays, editable (call ``TaskGains.refresh`` after editing one)."""
 
     qp: QpWeights
     walking: WalkingParams
@@ -117,157 +225,14 @@ class OscParams:
     #: "rigid_swing": the OSC sees the swing leg's leaf springs at zero deflection (its model
     #: holds them rigid, (14c)); "measured": every estimated deflection enters the kinematics
     springs: str = "rigid_swing"
-    source: str = "<defaults>"
 
     @classmethod
-    def from_yaml(cls, path: str | Path | None = None) -> OscParams:
-        """Load and validate the gains file; a bad value raises ``ConfigError``."""
-        p = Path(path) if path is not None else DEFAULT_GAINS_FILE
-        try:
-            raw = safe_load(p.read_text(encoding="utf-8"))
-        except OSError as e:
-            raise ConfigError(str(p), "<file>", f"cannot read: {e}", "a readable YAML file") from e
-        except yaml.YAMLError as e:
-            raise ConfigError(str(p), "<file>", f"not valid YAML: {e}") from e
-        if not isinstance(raw, dict):
-            raise ConfigError(str(p), "<root>", "expected a mapping",
-                              "qp, walking, standing, safety")
-        return _parse(raw, str(p))
-
-
-# ---------------------------------------------------------------------- parsing
-def _section(raw: dict[str, Any], key: str, file: str, prefix: str = "") -> dict[str, Any]:
-    v = raw.get(key)
-    if not isinstance(v, dict):
-        raise ConfigError(file, prefix + key, "missing or not a mapping")
-    return v
-
-
-def _num(raw: dict[str, Any], key: str, file: str, prefix: str, lo: float = 0.0,
-         hi: float = math.inf, default: float | None = None) -> float:
-    if key not in raw:
-        if default is None:
-            raise ConfigError(file, prefix + key, "missing", f"a number in [{lo}, {hi}]")
-        return default
-    v = raw[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-        raise ConfigError(file, prefix + key, f"not a finite number: {v!r}", f"[{lo}, {hi}]")
-    if not lo <= float(v) <= hi:
-        raise ConfigError(file, prefix + key, f"{v} out of range", f"[{lo}, {hi}]")
-    return float(v)
-
-
-def _vec(v: Any, n: int, file: str, key: str, lo: float = 0.0) -> np.ndarray:
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        v = [v] * n
-    if not isinstance(v, list) or len(v) != n:
-        raise ConfigError(file, key, f"expected {n} numbers, got {v!r}", f"a list of {n} numbers")
-    out = np.zeros(n)
-    for i, x in enumerate(v):
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(float(x)):
-            raise ConfigError(file, f"{key}[{i}]", f"not a finite number: {x!r}")
-        if float(x) < lo:
-            raise ConfigError(file, f"{key}[{i}]", f"{x} is negative", f">= {lo}")
-        out[i] = float(x)
-    return out
-
-
-def _gains(raw: dict[str, Any], key: str, n: int, file: str, prefix: str) -> Gains:
-    g = _section(raw, key, file, prefix)
-    k = prefix + key + "."
-    for name in g:
-        if name not in ("w", "kp", "kd"):
-            raise ConfigError(file, k + name, "unknown key", "w, kp, kd")
-    return Gains(*(_vec(g.get(a, 0.0), n, file, k + a) for a in ("w", "kp", "kd")))
-
-
-def _only(raw: dict[str, Any], allowed: tuple[str, ...], file: str, prefix: str) -> None:
-    """Reject unknown keys (a typo must not silently fall back to a default)."""
-    for key in raw:
-        if key not in allowed:
-            raise ConfigError(file, prefix + str(key), "unknown key", ", ".join(allowed))
-
-
-def _parse(raw: dict[str, Any], file: str) -> OscParams:
-    for key in raw:
-        if key not in ("qp", "walking", "standing", "safety", "springs"):
-            raise ConfigError(file, key, "unknown section",
-                              "qp, walking, standing, safety, springs")
-    springs = raw.get("springs", "rigid_swing")
-    if springs not in SPRING_MODES:
-        raise ConfigError(file, "springs", f"{springs!r} is not a spring mode",
-                          ", ".join(SPRING_MODES))
-    q = _section(raw, "qp", file)
-    qw = QpWeights()
-    names = {f.name for f in fields(QpWeights)}
-    for key in q:
-        if key not in names:
-            raise ConfigError(file, "qp." + key, "unknown key", ", ".join(sorted(names)))
-    for f in fields(QpWeights):
-        hi = 2.0 if f.name == "mu" else math.inf
-        setattr(qw, f.name, _num(q, f.name, file, "qp.", 0.0, hi, getattr(qw, f.name)))
-    if qw.mu <= 0.0:
-        raise ConfigError(file, "qp.mu", "must be positive", "(0, 2]")
-
-    w = _section(raw, "walking", file)
-    pw = "walking."
-    _only(w, ("pelvis", "com", "swing_foot", "toe", "hip_yaw", "ankle_torque_weight",
-              "com_height", "com_filter_hz", "com_clip", "swing_clearance", "swing_degree",
-              "swing_step_up_min", "swing_step_up_clearance", "swing_step_up_height",
-              "swing_lift_tau", "swing_approach_tau", "swing_toe"),
-          file, pw)
-    toe_mode = w.get("swing_toe", "plane")
-    if toe_mode not in SWING_TOE_MODES:
-        raise ConfigError(file, pw + "swing_toe", f"{toe_mode!r} is not a swing toe mode",
-                          ", ".join(SWING_TOE_MODES))
-    walking = WalkingParams(
-        pelvis=_gains(w, "pelvis", 3, file, pw),
-        com=_gains(w, "com", 3, file, pw),
-        swing_foot=_gains(w, "swing_foot", 3, file, pw),
-        toe=_gains(w, "toe", 1, file, pw),
-        hip_yaw=_gains(w, "hip_yaw", 1, file, pw),
-        ankle_torque_weight=_num(w, "ankle_torque_weight", file, pw, default=10.0),
-        com_height=_num(w, "com_height", file, pw, 0.5, 1.1, 0.85),
-        com_filter_hz=_num(w, "com_filter_hz", file, pw, 1.0, 1000.0, 100.0),
-        com_clip=_num(w, "com_clip", file, pw, 0.0, 0.2, 0.025),
-        swing_clearance=_num(w, "swing_clearance", file, pw, 0.0, 0.4, 0.15),
-        swing_degree=int(_num(w, "swing_degree", file, pw, 7, 12, 8)),
-        swing_step_up_min=_num(w, "swing_step_up_min", file, pw, 0.0, 1.0, 0.0),
-        swing_step_up_clearance=_num(w, "swing_step_up_clearance", file, pw, 0.0, 0.4, 0.06),
-        swing_step_up_height=_num(w, "swing_step_up_height", file, pw, 0.0, 0.2, 0.04),
-        swing_lift_tau=_num(w, "swing_lift_tau", file, pw, 0.1, 0.45, 0.25),
-        swing_approach_tau=_num(w, "swing_approach_tau", file, pw, 0.55, 0.9, 0.8),
-        swing_toe=str(toe_mode),
-    )
-    s = _section(raw, "standing", file)
-    ps = "standing."
-    _only(s, ("com", "pelvis", "hip_yaw", "com_height", "com_offset_x", "height_rate",
-              "xy_ramp_s"), file, ps)
-    standing = StandingParams(
-        com=_gains(s, "com", 3, file, ps),
-        pelvis=_gains(s, "pelvis", 3, file, ps),
-        hip_yaw=_gains(s, "hip_yaw", 1, file, ps),
-        com_height=_num(s, "com_height", file, ps, 0.5, 1.1, 0.80),
-        com_offset_x=_num(s, "com_offset_x", file, ps, -0.1, 0.1, 0.0),
-        height_rate=_num(s, "height_rate", file, ps, 0.0, 1.0, 0.1),
-        xy_ramp_s=_num(s, "xy_ramp_s", file, ps, 0.0, 10.0, 1.0),
-    )
-    f = raw.get("safety", {}) or {}
-    if not isinstance(f, dict):
-        raise ConfigError(file, "safety", "not a mapping")
-    _only(f, ("fall_height", "plan_timeout_s", "plan_fallback_s", "recover_s", "damping"),
-          file, "safety.")
-    timeout = _num(f, "plan_timeout_s", file, "safety.", 0.001, 5.0, 0.2)
-    safety = SafetyParams(
-        fall_height=_num(f, "fall_height", file, "safety.", 0.0, 1.0, 0.6),
-        plan_timeout_s=timeout,
-        plan_fallback_s=_num(f, "plan_fallback_s", file, "safety.", 0.0, timeout, 0.1),
-        recover_s=_num(f, "recover_s", file, "safety.", 0.0005, 10.0, 0.01),
-        damping=_vec(f.get("damping", [10.0, 10.0, 10.0, 10.0, 2.0] * 2), 10, file,
-                     "safety.damping"),
-    )
-    return OscParams(qp=qw, walking=walking, standing=standing, safety=safety,
-                     springs=str(springs), source=file)
+    def from_gains(cls, gains: OscGains) -> OscParams:
+        """The controller's copy of a gains file's values (``runtime.params.load(OscGains,
+        path)``)."""
+        return cls(qp=gains.qp, walking=_runtime(WalkingParams, gains.walking),
+                   standing=_runtime(StandingParams, gains.standing),
+                   safety=_runtime(SafetyParams, gains.safety), springs=gains.springs)
 
 
 # ---------------------------------------------------------------------- tasks
@@ -295,7 +260,8 @@ class TaskLog:
 # ydd_cmd = ydd_des + Kp (y_des - y) + Kd (yd_des - yd) (Section III-E), stores the norm of its
 # error in ``errs[k]`` and returns the next free row. ``kin`` is ``CassieModel.kin`` (rows:
 # R_pelvis 0-2, CoM 5, CoM velocity 6, CoM bias acceleration 7, contact points 8-11, their
-# velocities 12-15; world frame); ``g`` a task's packed gains [w; kp; kd] (``Gains.packed``).
+# velocities 12-15; world frame); ``g`` a task's packed gains [w; kp; kd]
+# (``TaskGains.packed``).
 # The walking and standing controllers call them from one kernel per tick each.
 _jit = numba.njit(cache=True, nogil=True)
 KIN_R, KIN_COM, KIN_COM_VEL, KIN_COM_DOT_V, KIN_P_CONTACT, KIN_V_CONTACT = 0, 5, 6, 7, 8, 12

@@ -2,7 +2,8 @@
 
 Typical use in the mapping thread (the process shell owns the camera thread and LCM)::
 
-    emap = ElevationMap(ElevationMapParams.from_yaml("hw_config/gains/elevation_map.yaml"))
+    params = runtime.params.load(ElevationMapParams, "hw_config/gains/elevation_map.yaml")
+    emap = ElevationMap(params)                      # (no variant: the simulation column)
     emap.recenter(pelvis_xy)                         # robot-centred, whole cells
     emap.apply_drift_correction(stance_foot_world)   # VII-B, before each point-cloud update
     status = emap.update_from_depth(depth_m, fx, fy, cx, cy, cam_pos, cam_quat_wxyz,

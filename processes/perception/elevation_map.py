@@ -10,56 +10,51 @@ shell owns the camera polling thread and the messages.
 from __future__ import annotations
 
 import functools
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from processes.perception.config import bounded, load_params, validate
 from runtime.errors import ConfigError
+from runtime.params import check, spec
 
 
 @dataclass(frozen=True)
 class ElevationMapParams:
     """Elevation-map parameters (Table VIII, elevation mapping; the noise model is ours)."""
 
-    length_m: float = bounded(2.5, lo=0.1, hi=20.0, lo_open=True, unit="m")
-    resolution_m: float = bounded(0.025, lo=0.005, hi=0.5, unit="m")
-    min_depth_m: float = bounded(0.2, lo=0.0, hi=10.0, unit="m")
-    max_depth_m: float = bounded(3.0, lo=0.1, hi=20.0, unit="m")
-    decimation: int = bounded(2, lo=1, hi=16, unit="px")
-    sensor_noise_base_m: float = bounded(0.003, lo=0.0, hi=1.0, lo_open=True, unit="m")
-    sensor_noise_quadratic_per_m: float = bounded(0.002, lo=0.0, hi=1.0, unit="1/m")
-    min_variance_m2: float = bounded(1e-6, lo=0.0, hi=1.0, lo_open=True, unit="m^2")
-    max_variance_m2: float = bounded(0.01, lo=0.0, hi=100.0, lo_open=True, unit="m^2")
-    mahalanobis_threshold: float = bounded(2.5, lo=0.0, hi=100.0, lo_open=True)
-    surface_gate_sigma: float = bounded(3.0, lo=0.0, hi=1e6, lo_open=True)
-    multi_height_noise_m2: float = bounded(9e-7, lo=0.0, hi=1.0, unit="m^2")
-    process_noise_m2: float = bounded(0.0, lo=0.0, hi=1.0, unit="m^2 per update")
-    drift_patch_px: int = bounded(4, lo=1, hi=32, unit="px")
+    length_m: float = spec(2.5, lo=0.1, hi=20.0, lo_open=True, unit="m")
+    resolution_m: float = spec(0.025, lo=0.005, hi=0.5, unit="m")
+    min_depth_m: float = spec(0.2, lo=0.0, hi=10.0, unit="m")
+    max_depth_m: float = spec(3.0, lo=0.1, hi=20.0, unit="m")
+    decimation: int = spec(2, lo=1, hi=16, unit="px")
+    sensor_noise_base_m: float = spec(0.003, lo=0.0, hi=1.0, lo_open=True, unit="m")
+    sensor_noise_quadratic_per_m: float = spec(0.002, lo=0.0, hi=1.0, unit="1/m")
+    min_variance_m2: float = spec(1e-6, lo=0.0, hi=1.0, lo_open=True, unit="m^2")
+    max_variance_m2: float = spec(0.01, lo=0.0, hi=100.0, lo_open=True, unit="m^2")
+    mahalanobis_threshold: float = spec(2.5, lo=0.0, hi=100.0, lo_open=True)
+    surface_gate_sigma: float = spec(3.0, lo=0.0, hi=1e6, lo_open=True)
+    multi_height_noise_m2: float = spec(9e-7, lo=0.0, hi=1.0, unit="m^2")
+    process_noise_m2: float = spec(0.0, lo=0.0, hi=1.0, unit="m^2 per update")
+    drift_patch_px: int = spec(4, lo=1, hi=32, unit="px")
     # the ground the robot starts on, from its feet (0: off); see ElevationMap.initialize_submap
-    init_submap_back_m: float = bounded(0.0, lo=0.0, hi=5.0, unit="m")
-    init_submap_front_m: float = bounded(0.0, lo=0.0, hi=5.0, unit="m")
-    init_submap_half_y_m: float = bounded(0.0, lo=0.0, hi=5.0, unit="m")
+    init_submap_back_m: float = spec(0.0, lo=0.0, hi=5.0, unit="m")
+    init_submap_front_m: float = spec(0.0, lo=0.0, hi=5.0, unit="m")
+    init_submap_half_y_m: float = spec(0.0, lo=0.0, hi=5.0, unit="m")
 
     @property
     def cells(self) -> int:
         """Cells per side of the square grid."""
         return max(1, round(self.length_m / self.resolution_m))
 
-    @classmethod
-    def from_yaml(cls, path: str | os.PathLike[str],
-                  profile: str | None = None) -> ElevationMapParams:
-        """Load `profiles.<profile>` of `path`; raise ConfigError on a bad value."""
-        params = load_params(cls, path, profile)
-        if params.max_depth_m <= params.min_depth_m:
-            raise ConfigError(str(path), "max_depth_m", "must exceed min_depth_m",
-                              f"> {params.min_depth_m:g} m")
-        if params.max_variance_m2 < params.min_variance_m2:
-            raise ConfigError(str(path), "max_variance_m2", "must be >= min_variance_m2",
-                              f">= {params.min_variance_m2:g} m^2")
-        return params
+    def __post_init__(self) -> None:
+        """The checks across fields (the ranges of single fields are ``spec``'s)."""
+        if self.max_depth_m <= self.min_depth_m:
+            raise ConfigError("<ElevationMapParams>", "max_depth_m", "must exceed min_depth_m",
+                              f"> {self.min_depth_m:g} m")
+        if self.max_variance_m2 < self.min_variance_m2:
+            raise ConfigError("<ElevationMapParams>", "max_variance_m2",
+                              "must be >= min_variance_m2", f">= {self.min_variance_m2:g} m^2")
 
 
 @dataclass(frozen=True)
@@ -148,7 +143,7 @@ class ElevationMap:
 
     def __init__(self, params: ElevationMapParams | None = None) -> None:
         self.params = params if params is not None else ElevationMapParams()
-        validate(self.params)
+        check(self.params)
         n = self.params.cells
         self.resolution = float(self.params.resolution_m)
         self.shape = (n, n)

@@ -17,6 +17,7 @@ unknown cells around them take the feet's height (the initial submap, see
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -25,8 +26,8 @@ from lcmtypes import depth_frame_t, elevation_map_t, robot_state_t
 from processes.kinematics import AlipKinematics
 from processes.perception.elevation_map import CropBox, ElevationMap, ElevationMapParams
 from runtime.config_types import ProcessConfig, Profile
-from runtime.errors import ConfigError
 from runtime.node import Node
+from runtime.params import spec
 
 LAYERS = ("elevation", "variance", "lowest")
 #: Leg links cropped from the point cloud, with the half extents of their boxes (m), body frame.
@@ -178,44 +179,33 @@ class PerceptionNode(Node):
         return f"{self.frames} frames, {self.rejected} not fused; last: {self.status_text}"
 
 
-def make_node(proc: ProcessConfig, profile: Profile) -> Node:
+#: the gains file (hw_config/gains/elevation_map.yaml): Table VIII, in ``Params.variant``
+Gains = ElevationMapParams
+
+
+@dataclass(frozen=True)
+class Params:
+    """Perception's ``params:`` (hw_config/processes.yaml, and the profiles' overrides)."""
+
+    variant: str = "simulation"  # the column of Table VIII: a variant of the gains file
+    #: where the camera is: ``estimated`` (the estimated pelvis pose and the mount below) or
+    #: ``frame`` (the pose in the frame: the simulator's true camera pose)
+    camera_pose: str = spec("estimated", choices=("estimated", "frame"))
+    #: the D455's position in the pelvis frame [x, y, z] (as in gains/sim.yaml)
+    camera_mount_pos_m: tuple[float, float, float] = spec((0.09, 0.0, 0.02), unit="m")
+    camera_pitch_down_deg: float = spec(50.0, lo=-90.0, hi=90.0, unit="deg")
+    crop_legs: bool = True  # drop the points on the robot's own legs (boxes around the links)
+    drift_correction: bool = True  # the stance foot corrects the map's height (Section VII-B)
+
+
+def make_node(proc: ProcessConfig, profile: Profile, params: Params,
+              gains: ElevationMapParams) -> Node:
     """Perception from hw_config: map parameters (gains file) and camera mount (params)."""
-    file, p = str(proc.source_file), proc.params
-    variant = str(p.get("variant", "simulation"))
-    params = (
-        ElevationMapParams.from_yaml(proc.gains_file, variant)
-        if proc.gains_file
-        else ElevationMapParams()
-    )
-    pose = p.get("camera_pose", "estimated")
-    if pose not in ("estimated", "frame"):
-        raise ConfigError(
-            file, proc.key("params", "camera_pose"), f"unknown value {pose!r}", "estimated, frame"
-        )
-    mount = p.get("camera_mount_pos_m", [0.09, 0.0, 0.02])
-    if not (
-        isinstance(mount, list)
-        and len(mount) == 3
-        and all(isinstance(v, (int, float)) for v in mount)
-    ):
-        raise ConfigError(
-            file,
-            proc.key("params", "camera_mount_pos_m"),
-            f"must be [x, y, z] in the pelvis frame, got {mount!r}",
-        )
-    pitch = p.get("camera_pitch_down_deg", 50.0)
-    if not isinstance(pitch, (int, float)) or not -90.0 <= pitch <= 90.0:
-        raise ConfigError(
-            file,
-            proc.key("params", "camera_pitch_down_deg"),
-            f"out of range: {pitch!r}",
-            "[-90, 90]",
-        )
     return PerceptionNode(
-        params,
-        pose,
-        np.asarray(mount, dtype=float),
-        float(pitch),
-        bool(p.get("crop_legs", True)),
-        bool(p.get("drift_correction", True)),
+        gains,
+        params.camera_pose,
+        np.asarray(params.camera_mount_pos_m, dtype=float),
+        params.camera_pitch_down_deg,
+        params.crop_legs,
+        params.drift_correction,
     )

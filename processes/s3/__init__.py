@@ -2,7 +2,8 @@
 
 Typical use in the S3 process (one pipeline object per process: it keeps S_{k-1})::
 
-    pipe = S3Pipeline(S3Params.from_yaml("hw_config/gains/s3.yaml", "simulation"))
+    params = runtime.params.load(S3Params, "hw_config/gains/s3.yaml", "simulation")
+    pipe = S3Pipeline(params)
     result = pipe.process(elevation, resolution, origin_xy, map_time_s=t_map, now_s=t_now,
                           lowest=lowest_layer)          # lowest: optional, for LNV
     result.status                     # 'ok', 'no safe terrain', 'stale map', 'all NaN', ...

@@ -9,11 +9,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from processes.perception.config import validate
 from processes.s3.decomposition import convex_decomposition, signed_area
 from processes.s3.params import S3Params
 from processes.s3.planes import fit_planes, prism_halfspaces
 from processes.s3.segmentation import Segmenter, inpaint, shift_mask
+from runtime.params import check
 
 STAGES = ("inpainting", "criteria", "cleanup", "decomposition", "plane_fit")
 
@@ -73,7 +73,7 @@ class S3Pipeline:
 
     def __init__(self, params: S3Params | None = None) -> None:
         self.params = params if params is not None else S3Params()
-        validate(self.params)
+        check(self.params)
         p = self.params
         self.segmenter = Segmenter(p.k_hyst, p.k_safe, p.margin_kernel_px, p.clean_kernel_px,
                                    p.log_sigma_px, p.alpha_curve, p.inclination_kernel_px)

@@ -9,6 +9,7 @@ why; nothing here raises on data.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -103,8 +104,17 @@ class S3Node(Node):
         return f"{self.maps} maps; last: {self.last_status}"
 
 
-def make_node(proc: ProcessConfig, profile: Profile) -> Node:
+#: the gains file (hw_config/gains/s3.yaml): Table VIII, in the variant ``Params.variant`` names
+Gains = S3Params
+
+
+@dataclass(frozen=True)
+class Params:
+    """S3's ``params:`` (hw_config/processes.yaml, and the profiles' overrides)."""
+
+    variant: str = "simulation"  # the column of Table VIII: a variant of the gains file
+
+
+def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: S3Params) -> Node:
     """S3 from hw_config (gains: Table VIII, per variant)."""
-    variant = str(proc.params.get("variant", "simulation"))
-    params = S3Params.from_yaml(proc.gains_file, variant) if proc.gains_file else S3Params()
-    return S3Node(params)
+    return S3Node(gains)

@@ -19,16 +19,20 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from scipy.linalg import expm
 
+from runtime.params import spec
+
 
 @dataclass(frozen=True)
 class AlipFilterParams:
     """ALIP model and noise (std devs): measurement noise is high on L, low on the CoM."""
 
-    height: float = 0.85  # H of (1), m (Table V)
-    meas_pos: float = 0.005  # m
-    meas_mom: float = 1.0  # kg m^2/s
-    proc_pos: float = 0.02  # m/sqrt(s): model error on the CoM rate
-    proc_mom: float = 4.0  # kg m^2/s/sqrt(s): unmodelled ankle torque, impacts
+    height: float = spec(0.85, lo=0.0, lo_open=True, unit="m")  # H of (1) (Table V)
+    meas_pos: float = spec(0.005, lo=0.0, lo_open=True, unit="m")
+    meas_mom: float = spec(1.0, lo=0.0, lo_open=True, unit="kg m^2/s")
+    #: model error on the CoM rate
+    proc_pos: float = spec(0.02, lo=0.0, lo_open=True, unit="m/sqrt(s)")
+    #: unmodelled ankle torque, impacts
+    proc_mom: float = spec(4.0, lo=0.0, lo_open=True, unit="kg m^2/s/sqrt(s)")
 
 
 def alip_a(mass: float, height: float, gravity: float) -> np.ndarray:

@@ -21,16 +21,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from runtime.errors import ConfigError
+from runtime.params import spec
+
 
 @dataclass(frozen=True)
 class ContactParams:
     """Spring-to-force gains (N/rad) and hysteresis thresholds on the force (N)."""
 
-    shin_n_per_rad: float = 2100.0
-    heel_n_per_rad: float = 2375.0
-    on_n: float = 90.0
-    off_n: float = 45.0
-    touchdown_speed_mps: float = 1.0  # a contact starts only on a foot slower than this
+    shin_n_per_rad: float = spec(2100.0, lo=0.0, unit="N/rad")
+    heel_n_per_rad: float = spec(2375.0, lo=0.0, unit="N/rad")
+    on_n: float = spec(90.0, lo=0.0, unit="N")
+    off_n: float = spec(45.0, lo=0.0, unit="N")
+    #: a contact starts only on a foot slower than this (0 would never let one start; about
+    #: 1: a touchdown lands at ~0.3 m/s)
+    touchdown_speed_mps: float = spec(1.0, lo=0.0, lo_open=True, unit="m/s")
+
+    def __post_init__(self) -> None:
+        if self.off_n >= self.on_n:
+            raise ConfigError("<ContactParams>", "off_n", f"{self.off_n} must be below on_n "
+                              f"({self.on_n}) for hysteresis", f"[0, {self.on_n}) N")
 
 
 class SpringContact:

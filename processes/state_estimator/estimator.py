@@ -486,8 +486,8 @@ class CassieEstimator:
         self._sole_mode[:] = 0
         self._sole_points(R[2])
         feet_w = (self._h + self.r_imu) @ R.T  # sole points relative to the pelvis, world axes
-        z = p.ground_z - feet_w[:, 2].min()
-        pelvis = np.array((p.init_xy[0], p.init_xy[1], z))
+        z = p.init.ground_z_m - feet_w[:, 2].min()
+        pelvis = np.array((p.init.xy_m[0], p.init.xy_m[1], z))
         self.filter.reset(R, np.zeros(3), pelvis + R @ self.r_imu)
         self.contact.in_contact[:] = [False, False]
         self.alip.stance = -1

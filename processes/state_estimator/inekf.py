@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from runtime.params import spec
+
 from .kernels import DIM, _correct, _correct_still, _propagate
 
 #: state slices (rows of the 15-dim error)
@@ -42,14 +44,15 @@ FOOT = (slice(9, 12), slice(12, 15))
 class InEKFNoise:
     """Continuous-time noise densities (std devs) and initial uncertainty of the InEKF."""
 
-    gyro: float = 0.002  # rad/s/sqrt(Hz)
-    accel: float = 0.04  # m/s^2/sqrt(Hz)
-    contact: float = 0.01  # m/s/sqrt(Hz): a planted foot's slip
-    swing: float = 1.0  # m/s/sqrt(Hz): a foot that is not in contact
-    kinematics: float = 0.005  # m: leg kinematics (encoders, spring model) per axis
-    init_rot: float = 0.02  # rad
-    init_vel: float = 0.1  # m/s
-    init_pos: float = 0.01  # m
+    gyro: float = spec(0.002, lo=0.0, lo_open=True, unit="rad/s/sqrt(Hz)")
+    accel: float = spec(0.04, lo=0.0, lo_open=True, unit="m/s^2/sqrt(Hz)")
+    contact: float = spec(0.01, lo=0.0, lo_open=True, unit="m/s/sqrt(Hz)")  # a planted foot's slip
+    swing: float = spec(1.0, lo=0.0, lo_open=True, unit="m/s/sqrt(Hz)")  # a foot not in contact
+    #: leg kinematics (encoders, spring model) per axis
+    kinematics: float = spec(0.005, lo=0.0, lo_open=True, unit="m")
+    init_rot: float = spec(0.02, lo=0.0, lo_open=True, unit="rad")
+    init_vel: float = spec(0.1, lo=0.0, lo_open=True, unit="m/s")
+    init_pos: float = spec(0.01, lo=0.0, lo_open=True, unit="m")
 
 
 @dataclass(frozen=True)
@@ -59,10 +62,10 @@ class StillParams:
     ``gyro_rad_s`` of no rotation and ``accel_m_s2`` of a specific force of g, for
     ``after_s``; the update then measures the body velocity as 0 with ``velocity_std_m_s``."""
 
-    gyro_rad_s: float = 0.1
-    accel_m_s2: float = 0.5
-    after_s: float = 0.25
-    velocity_std_m_s: float = 0.01
+    gyro_rad_s: float = spec(0.1, lo=0.0, lo_open=True, unit="rad/s")
+    accel_m_s2: float = spec(0.5, lo=0.0, lo_open=True, unit="m/s^2")
+    after_s: float = spec(0.25, lo=0.0, lo_open=True, unit="s")
+    velocity_std_m_s: float = spec(0.01, lo=0.0, lo_open=True, unit="m/s")
 
 
 def skew(w: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:

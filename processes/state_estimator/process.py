@@ -20,6 +20,7 @@ target PC's status bits and ``status`` the estimator's own ``STATUS_*`` flags.
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,13 +32,12 @@ from runtime.cassie_packets import (
     OutputPacket,
     PacketError,
 )
-from runtime.config import process_gains
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Context, Inbox, Node
 
 from .estimator import STATUS_PACKET_GAP, CassieEstimator, RejectedPacket
 from .kernels import OK
-from .params import DEFAULT_GAINS_FILE, EstimatorParams
+from .params import EstimatorParams
 
 #: a saved state (``state_arrays``) is carried on from when the first packet comes at most
 #: this long after it (us of sim time); older, the estimator starts afresh
@@ -227,10 +227,18 @@ class StateEstimatorNode(Node):
         return s
 
 
-def make_node(proc: ProcessConfig, profile: Profile) -> Node:
-    """Build the estimator: gains from ``proc.gains_file`` (relative to hw_config), else
-    ``hw_config/gains/state_estimator.yaml``; no free-form ``params`` are accepted."""
-    path = process_gains(proc, DEFAULT_GAINS_FILE)
-    node = StateEstimatorNode(EstimatorParams.from_yaml(path))
+@dataclass(frozen=True)
+class Params:
+    """No ``params:``: every setting of the estimator lives in its gains file."""
+
+
+#: the gains file (``gains:``, hw_config/gains/state_estimator.yaml), section by section
+Gains = EstimatorParams
+
+
+def make_node(proc: ProcessConfig, profile: Profile, params: Params,
+              gains: EstimatorParams) -> Node:
+    """The estimator of ``gains`` (``runtime.builder.build_node`` reads and checks both)."""
+    node = StateEstimatorNode(gains)
     node.name = proc.name
     return node

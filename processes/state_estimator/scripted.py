@@ -10,6 +10,7 @@ falling: real physics, real packets (``runtime.cassie_packets``), no balance con
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -119,8 +120,10 @@ def sim_settings(holder_timeconst_s: float = 0.2) -> Any:
 
 def run_loop(motion: str, seconds: float, *, stop_after_s: float | None = None,
              nan_at_s: float | None = None, bridge_params: Any = None,
-             estimator_params: Any = None) -> LoopRecord:
-    """Sim -> estimator -> scripted PD -> torque bridge -> sim, in the deterministic harness."""
+             estimator_params: Any = None,
+             progress: Callable[[int], None] | None = None) -> LoopRecord:
+    """Sim -> estimator -> scripted PD -> torque bridge -> sim, in the deterministic harness
+    (``progress(sim_us)``: the harness's progress callback, for a caller's progress bar)."""
     from processes.state_estimator.process import StateEstimatorNode
     from processes.torque_bridge.process import TorqueBridgeNode
     from sim.process import SimNode
@@ -153,7 +156,7 @@ def run_loop(motion: str, seconds: float, *, stop_after_s: float | None = None,
     h.tap("NETWORK_CASSIE_STATE", lambda t, m: rec.network.append(int(m.header.utime)))
     h.tap("CASSIE_CONTACT", lambda t, m: rec.contacts.append(m))
     h.tap("CASSIE_INPUT", lambda t, m: rec.applied.append(m))
-    h.run_until(round(seconds * 1e6))
+    h.run_until(round(seconds * 1e6), progress=progress)
     h.close()
     return rec
 

@@ -27,8 +27,7 @@ import numba
 import numpy as np
 
 from runtime.cassie_packets import NUM_MOTORS
-from runtime.config import load_yaml
-from runtime.errors import ConfigError
+from runtime.params import spec
 
 Fallback = Literal["zero", "damping"]
 MOTOR_KINDS = ("hip_roll", "hip_yaw", "hip_pitch", "knee", "foot")
@@ -47,7 +46,8 @@ DEFAULT_GAINS_FILE = Path(__file__).resolve().parents[2] / "hw_config" / "gains"
 
 @dataclass(frozen=True)
 class BridgeParams:
-    """Torque limits and watchdog settings, per motor in ``MOTOR_NAMES`` order."""
+    """Torque limits and watchdog settings, per motor in ``MOTOR_NAMES`` order: what
+    ``TorqueBridge`` runs on (``from_gains``: the gains file's values, per motor)."""
 
     torque_limit: tuple[float, ...] = (112.5, 112.5, 195.2, 195.2, 45.0) * 2  # N m
     watchdog_s: float = 0.010
@@ -56,59 +56,64 @@ class BridgeParams:
     release_holder: bool = False
 
     @classmethod
-    def from_yaml(cls, path: str | Path) -> BridgeParams:
-        """Read and validate ``hw_config/gains/torque_bridge.yaml``."""
-        return cls.from_dict(load_yaml(Path(path)), str(path))
-
-    @classmethod
-    def from_dict(cls, doc: Any, file: str = "<dict>") -> BridgeParams:
-        """Validate a parsed gains mapping."""
-        if not isinstance(doc, dict):
-            raise ConfigError(file, "<top level>", "must be a mapping")
-        allowed = {"torque_limit_nm", "watchdog_ms", "fallback", "damping_kd", "release_holder"}
-        for k in doc:
-            if k not in allowed:
-                raise ConfigError(file, str(k), "unknown key", ", ".join(sorted(allowed)))
-        limit = _per_kind(file, "torque_limit_nm", doc.get("torque_limit_nm"), positive=True)
-        kd = _per_kind(file, "damping_kd", doc.get("damping_kd"), positive=False)
-        wd = doc.get("watchdog_ms", 10.0)
-        if isinstance(wd, bool) or not isinstance(wd, (int, float)) or not 0.5 <= wd <= 1000:
-            raise ConfigError(file, "watchdog_ms", f"{wd!r} is out of range", "[0.5, 1000] ms")
-        fb = doc.get("fallback", "damping")
-        if fb not in ("zero", "damping"):
-            raise ConfigError(file, "fallback", f"unknown value {fb!r}", "zero, damping")
-        rel = doc.get("release_holder", False)
-        if not isinstance(rel, bool):
-            raise ConfigError(file, "release_holder", f"must be true or false, got {rel!r}")
+    def from_gains(cls, gains: BridgeGains) -> BridgeParams:
+        """The settings of a gains file (``BridgeGains``), each kind's value on both legs."""
         return cls(
-            torque_limit=limit or cls.torque_limit,
-            watchdog_s=float(wd) / 1000.0,
-            fallback=fb,
-            damping_kd=kd or cls.damping_kd,
-            release_holder=rel,
+            torque_limit=gains.torque_limit_nm.per_motor(),
+            watchdog_s=gains.watchdog_ms / 1000.0,
+            fallback=gains.fallback,
+            damping_kd=gains.damping_kd.per_motor(),
+            release_holder=gains.release_holder,
         )
 
 
-def _per_kind(file: str, key: str, v: Any, positive: bool) -> tuple[float, ...] | None:
-    """A mapping motor kind -> value, expanded to the 10 motors (left, then right)."""
-    if v is None:
-        return None
-    if not isinstance(v, dict):
-        raise ConfigError(file, key, f"must be a mapping of {', '.join(MOTOR_KINDS)}")
-    out = []
-    for kind in MOTOR_KINDS:
-        if kind not in v:
-            raise ConfigError(file, f"{key}.{kind}", "is required", ", ".join(MOTOR_KINDS))
-        x = v[kind]
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or x != x or x < 0 or (
-                positive and x == 0) or x > 1000:
-            raise ConfigError(file, f"{key}.{kind}", f"{x!r} is out of range",
-                              "(0, 1000]" if positive else "[0, 1000]")
-        out.append(float(x))
-    for k in v:
-        if k not in MOTOR_KINDS:
-            raise ConfigError(file, f"{key}.{k}", "unknown motor kind", ", ".join(MOTOR_KINDS))
-    return tuple(out) * 2
+_LIMIT = {"lo": 0.0, "hi": 1000.0, "lo_open": True, "unit": "N m"}
+_KD = {"lo": 0.0, "hi": 1000.0, "unit": "N m s/rad"}
+
+
+@dataclass(frozen=True)
+class TorqueLimits:
+    """Joint-side torque limit of each motor kind (both legs), N m; every kind is given."""
+
+    hip_roll: float = spec(**_LIMIT)
+    hip_yaw: float = spec(**_LIMIT)
+    hip_pitch: float = spec(**_LIMIT)
+    knee: float = spec(**_LIMIT)
+    foot: float = spec(**_LIMIT)
+
+    def per_motor(self) -> tuple[float, ...]:
+        """The 10 motors' values (``MOTOR_NAMES`` order: the left leg, then the right)."""
+        return tuple(float(getattr(self, k)) for k in MOTOR_KINDS) * 2
+
+
+@dataclass(frozen=True)
+class DampingGains:
+    """Joint damping of the fallback, per motor kind (both legs), N m s/rad; every kind is
+    given."""
+
+    hip_roll: float = spec(**_KD)
+    hip_yaw: float = spec(**_KD)
+    hip_pitch: float = spec(**_KD)
+    knee: float = spec(**_KD)
+    foot: float = spec(**_KD)
+
+    def per_motor(self) -> tuple[float, ...]:
+        """The 10 motors' values (``MOTOR_NAMES`` order: the left leg, then the right)."""
+        return tuple(float(getattr(self, k)) for k in MOTOR_KINDS) * 2
+
+
+@dataclass(frozen=True)
+class BridgeGains:
+    """``hw_config/gains/torque_bridge.yaml`` (the process module's ``Gains``)."""
+
+    torque_limit_nm: TorqueLimits = spec(
+        default_factory=lambda: TorqueLimits(*BridgeParams.torque_limit[:5]))
+    #: no fresh command for this long (state sim time) -> fallback
+    watchdog_ms: float = spec(10.0, lo=0.5, hi=1000.0, unit="ms")
+    fallback: Fallback = spec("damping")
+    damping_kd: DampingGains = spec(
+        default_factory=lambda: DampingGains(*BridgeParams.damping_kd[:5]))
+    release_holder: bool = False  # set the release flag on packets sent from a valid command
 
 
 #: what ``_torques`` puts out: the newest command, zeros, or joint damping

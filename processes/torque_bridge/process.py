@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import logging
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -37,13 +38,12 @@ from runtime.cassie_packets import (
     InputPacket,
     LinkCounter,
 )
-from runtime.config import param_number, process_gains
 from runtime.config_types import ProcessConfig, Profile
-from runtime.errors import ConfigError
 from runtime.node import Context, Inbox, Node
 from runtime.pairing import link_token
+from runtime.params import spec
 
-from .bridge import DEFAULT_GAINS_FILE, SOURCE_COMMAND, BridgeParams, TorqueBridge
+from .bridge import SOURCE_COMMAND, BridgeGains, BridgeParams, TorqueBridge
 
 log = logging.getLogger(__name__)
 
@@ -277,32 +277,36 @@ class TorqueBridgeNode(Node):
         }
 
 
-def make_node(proc: ProcessConfig, profile: Profile) -> Node:
-    """Build the bridge: settings from ``proc.gains_file`` (relative to hw_config), else
-    ``hw_config/gains/torque_bridge.yaml``. ``params.answer_on``: ``state`` (each robot state
-    is answered with the newest torque, as on the robot), ``torque`` (each torque answers the
-    state it was computed from: the sim's lockstep waits for the controller) or ``auto``
-    (torque in lockstep profiles, state otherwise)."""
-    path = process_gains(proc, DEFAULT_GAINS_FILE, allow_params=True)
-    answer = str(proc.params.get("answer_on", "auto"))
-    choices = ("auto", "command", "state", "torque")
-    for key in proc.params:
-        if key not in ("answer_on", "fill_hz", "release_after_s"):
-            raise ConfigError(str(proc.source_file), proc.key("params", str(key)),
-                              "unknown parameter", "answer_on, fill_hz, release_after_s")
-    after = param_number(proc, "release_after_s", lo=0.0, hi=60.0,
-                         hint="seconds of the controller standing before the holder is "
-                              "released (with the sim's params.holder_release: manual)")
-    fill_hz = param_number(proc, "fill_hz", lo=0.0, hi=2000.0, lo_open=True,
-                           hint="a rate in Hz (the OSC's max_rate_hz), or leave it out")
-    if answer not in choices:
-        raise ConfigError(str(proc.source_file), proc.key("params", "answer_on"),
-                          f"unknown value {answer!r}", ", ".join(choices))
+@dataclass(frozen=True)
+class Params:
+    """The bridge's ``params:`` (processes.yaml, a profile's ``overrides:``)."""
+
+    #: what sends a packet: ``state`` (each robot state is answered with the newest torque, as
+    #: on the robot), ``command`` (each torque command at once, plus the watchdog's ticks),
+    #: ``torque`` (each torque answers the state it was computed from: the sim's lockstep
+    #: waits for the controller) or ``auto`` (torque in lockstep profiles, command otherwise)
+    answer_on: str = spec("auto", choices=("auto", "command", "state", "torque"))
+    #: answer_on command: also answer the states a rate-limited OSC skips, at this rate (the
+    #: OSC's max_rate_hz), with the newest torque; None: not
+    fill_hz: float | None = spec(None, lo=0.0, hi=2000.0, lo_open=True, unit="Hz")
+    #: seconds of the controller standing before the holder is released (with the sim's
+    #: params.holder_release: manual); None: the gains file's release_holder alone
+    release_after_s: float | None = spec(None, lo=0.0, hi=60.0, unit="s")
+
+
+#: the gains file (``gains:``, hw_config/gains/torque_bridge.yaml)
+Gains = BridgeGains
+
+
+def make_node(proc: ProcessConfig, profile: Profile, params: Params,
+              gains: BridgeGains) -> Node:
+    """The bridge of ``gains`` and ``params`` (``runtime.builder.build_node`` reads and checks
+    both); ``answer_on: auto`` is ``torque`` in a lockstep profile, ``command`` otherwise."""
+    answer = params.answer_on
     if answer == "auto":
         answer = "torque" if profile.mode == "lockstep" else "command"
-    node = TorqueBridgeNode(BridgeParams.from_yaml(path), answer,
-                            float(fill_hz) if fill_hz is not None else None)
+    node = TorqueBridgeNode(BridgeParams.from_gains(gains), answer, params.fill_hz)
     node.name = proc.name
-    if after is not None:
-        node.release_after_us = round(float(after) * 1e6)
+    if params.release_after_s is not None:
+        node.release_after_us = round(params.release_after_s * 1e6)
     return node

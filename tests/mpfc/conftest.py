@@ -22,7 +22,9 @@ def params() -> MpfcParams:
     heights: the generated instances put the stance foot anywhere, not on a foothold."""
     import dataclasses
 
-    p = MpfcParams.from_yaml(ROOT / "hw_config" / "gains" / "mpfc.yaml", "hardware")
+    from runtime.params import load
+
+    p = load(MpfcParams, ROOT / "hw_config" / "gains" / "mpfc.yaml", "hardware")
     return dataclasses.replace(p, foothold_anchor_m=0.0)
 
 

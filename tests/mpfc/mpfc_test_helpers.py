@@ -10,6 +10,7 @@ from processes.mpfc import MpfcParams, MpfcSolution, MpfcSolver
 from processes.mpfc.gurobi_backend import exhaustive_reference
 from processes.mpfc.instances import Instance
 from processes.mpfc.problem import build_miqp
+from runtime.params import check
 
 
 def solve(solver: MpfcSolver, inst: Instance, **over) -> MpfcSolution:
@@ -40,9 +41,7 @@ def rel_err(a: float, b: float) -> float:
 
 def with_params(params: MpfcParams, **changes) -> MpfcParams:
     """A validated copy of params with some fields changed."""
-    p = dataclasses.replace(params, **changes)
-    p.validate()
-    return p
+    return check(dataclasses.replace(params, **changes))
 
 
 def objective_matches(sol: MpfcSolution, ref: float, tol: float = 1e-6) -> bool:

@@ -33,7 +33,8 @@ def test_a_sloped_foothold_counts_by_its_nearest_corner() -> None:
 
 
 def test_a_bad_height_limit_is_a_clear_config_error() -> None:
-    from processes.mpfc.process import make_node
+    from runtime.builder import build_node
 
-    with pytest.raises(ConfigError, match="foothold_max_height_m"):
-        make_node(_proc(foothold_max_height_m=-1.0), None)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match=r"processes\.mpfc\.params\.foothold_max_height_m: "
+                                          r"out of range: -1\.0 \(allowed: \[0\.0, inf\] m\)"):
+        build_node(_proc(foothold_max_height_m=-1.0), None)  # type: ignore[arg-type]

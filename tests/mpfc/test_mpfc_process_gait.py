@@ -10,7 +10,8 @@ import pytest
 
 from lcmtypes import mpfc_output_t, robot_state_t
 from processes.kinematics import load_model
-from processes.mpfc.process import GAIT_DS, GAIT_SS, make_node
+from processes.mpfc.process import GAIT_DS, GAIT_SS
+from runtime.builder import build_node
 from runtime.config_types import ProcessConfig
 from runtime.errors import ConfigError
 from runtime.harness import Binding, Harness
@@ -60,12 +61,12 @@ def _proc(**params) -> ProcessConfig:  # type: ignore[no-untyped-def]
     )
 
 
-def _run(seconds: float, contact=None, **params):  # type: ignore[no-untyped-def]
+def _run(seconds: float, contact=None, footholds_msg=None, **params):  # type: ignore[no-untyped-def]
     from runtime.config import HW_CONFIG_DIR
 
     profile = type("P", (), {"resolve": lambda self, p: HW_CONFIG_DIR / p,
                              "mode": "lockstep"})()  # the harness steps it in sim time
-    node = make_node(_proc(**params), profile)
+    node = build_node(_proc(**params), profile)
     h = Harness(
         [
             Binding(StateReplay(0.3, contact), inputs={}, outputs={"state": "S"}),
@@ -78,6 +79,8 @@ def _run(seconds: float, contact=None, **params):  # type: ignore[no-untyped-def
     )
     plans: list[mpfc_output_t] = []
     h.tap("P", lambda t, m: plans.append(m))
+    if footholds_msg is not None:  # (as the sim publishes its terrain's truth)
+        h.inject("F", footholds_msg, at_us=0)
     h.run_until(int(seconds * 1e6))
     return node, plans
 
@@ -116,7 +119,10 @@ def test_gait_alternates_stance_with_step_durations_within_bounds():
 
 
 def test_footsteps_land_on_ground_truth_stones():
-    node, plans = _run(2.0, footholds="terrain:stones")
+    from sim import terrain as sim_terrain
+
+    truth = sim_terrain.foothold_set_msg(sim_terrain.generate("stones"))
+    node, plans = _run(2.0, footholds="channel", footholds_msg=truth)
     assert node.footholds, "the stones terrain gave no footholds"
     last = plans[-1]
     step = np.array(last.next_footstep_world)

@@ -80,9 +80,10 @@ def test_simulation_parameters_are_exact_too(params) -> None:
     from pathlib import Path
 
     from processes.mpfc import MpfcParams
+    from runtime.params import load
 
     yaml = Path(__file__).resolve().parents[2] / "hw_config" / "gains" / "mpfc.yaml"
-    solver = MpfcSolver(with_params(MpfcParams.from_yaml(yaml, "simulation"),
+    solver = MpfcSolver(with_params(load(MpfcParams, yaml, "simulation"),
                                     time_limit_ms=SLOW_OK))
     rng = np.random.default_rng(5)
     for m in (3, 12):

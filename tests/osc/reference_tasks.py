@@ -11,7 +11,7 @@ import numpy as np
 
 from processes.osc.model import CassieModel
 from processes.osc.qp import ROW_COM, ROW_CONTACT, ROW_DOF, TaskRows
-from processes.osc.tasks import Gains
+from processes.osc.tasks import TaskGains as Gains
 
 
 class TaskLog:

@@ -195,12 +195,13 @@ def test_osc_qp_solution_is_the_optimum_of_its_qp_with_limits_active(q_stand):
     the KKT conditions (checked independently here) and costs no more than a tightly
     converged piqp's answer, so it is the QP's optimum."""
     from processes.osc.controller import OscController
-    from processes.osc.tasks import OscParams
+    from processes.osc.tasks import DEFAULT_GAINS_FILE, OscGains, OscParams
     from processes.osc.walking import DOUBLE_AFTER_LEFT
+    from runtime.params import load
 
     from .test_qp import _Cmd, _Plan
 
-    params = OscParams.from_yaml()
+    params = OscParams.from_gains(load(OscGains, DEFAULT_GAINS_FILE))
     params.standing.com.kp[:] = 3e3
     params.standing.com.refresh()
     params.standing.com_offset_x = 0.05

@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 import yaml
 
-from processes.osc.tasks import DEFAULT_GAINS_FILE, OscParams
+from processes.osc.tasks import DEFAULT_GAINS_FILE, OscGains, OscParams
 from runtime.errors import ConfigError
+from runtime.params import load
 
 
 def test_default_gains_file_holds_table_vii_values():
-    p = OscParams.from_yaml()
+    p = OscParams.from_gains(load(OscGains, DEFAULT_GAINS_FILE))
     w = p.walking
     np.testing.assert_allclose(w.swing_foot.kp, [400, 400, 400])
     np.testing.assert_allclose(w.swing_foot.kd, [35, 35, 25])  # x, y: not Table VII (20)
@@ -43,11 +44,12 @@ def _write(tmp_path: Path, mutate) -> Path:
         (lambda r: r["safety"].__setitem__("fall_height", 3.0), "safety.fall_height"),
         (lambda r: r.pop("standing"), "standing"),
         (lambda r: r["walking"].__setitem__("com_heigth", 0.8), "walking.com_heigth"),
+        (lambda r: r["safety"].__setitem__("plan_fallback_s", 0.5), "safety.plan_fallback_s"),
     ],
 )
 def test_bad_gain_value_raises_config_error_naming_the_key(tmp_path, mutate, key):
     f = _write(tmp_path, mutate)
     with pytest.raises(ConfigError) as e:
-        OscParams.from_yaml(f)
+        load(OscGains, f)
     assert e.value.key == key
     assert str(f) in str(e.value)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lcmtypes import osc_debug_t, robot_state_t, torque_command_t
-from processes.osc.process import make_node
+from runtime.builder import build_node
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
 from runtime.config_types import ProcessConfig, Profile
 from runtime.errors import ConfigError
@@ -53,7 +53,8 @@ def _profile() -> Profile:
 
 def _proc(**params) -> ProcessConfig:
     return ProcessConfig(name="osc", host="nuc", module="processes.osc.process",
-                         source_file=HW / "processes.yaml", params=dict(params))
+                         source_file=HW / "processes.yaml", params=dict(params),
+                         gains_file=HW / "gains" / "osc.yaml")
 
 
 def _state(q: np.ndarray, utime: int, held: bool = True) -> robot_state_t:
@@ -69,7 +70,7 @@ def _state(q: np.ndarray, utime: int, held: bool = True) -> robot_state_t:
 
 
 def test_node_publishes_torque_and_debug_stamped_with_the_state_utime(q_stand):
-    node = make_node(_proc(), _profile())
+    node = build_node(_proc(), _profile())
     ctx = _Ctx()
     node.setup(ctx)
     node.tick(ctx, _Inbox(_state(q_stand, 123_456)))
@@ -82,7 +83,7 @@ def test_node_publishes_torque_and_debug_stamped_with_the_state_utime(q_stand):
 
 
 def test_node_with_nan_or_malformed_state_publishes_finite_safe_torques(q_stand):
-    node = make_node(_proc(), _profile())
+    node = build_node(_proc(), _profile())
     ctx = _Ctx()
     node.setup(ctx)
     q = q_stand.copy()
@@ -91,7 +92,7 @@ def test_node_with_nan_or_malformed_state_publishes_finite_safe_torques(q_stand)
     tq = dict(ctx.sent)["torque"]
     assert tq.mode == 2 and "non-finite" in tq.status
     assert np.all(np.isfinite(tq.torque))
-    node2 = make_node(_proc(), _profile())
+    node2 = build_node(_proc(), _profile())
     node2.setup(ctx)
     bad = _state(q_stand, 2000)
     bad.q = bad.q[:20]
@@ -103,7 +104,7 @@ def test_node_with_nan_or_malformed_state_publishes_finite_safe_torques(q_stand)
 
 def test_unknown_process_parameter_is_a_config_error():
     with pytest.raises(ConfigError) as e:
-        make_node(_proc(kp=3), _profile())
+        build_node(_proc(kp=3), _profile())
     assert e.value.key == "processes.osc.params.kp"
 
 
@@ -137,7 +138,7 @@ def test_before_the_first_command_the_osc_walks_or_stands_as_configured(q_stand,
     makes the OSC wait for the radio."""
     from processes.osc.controller import STANDING, WALKING
 
-    node = make_node(_proc(start=start), _profile())
+    node = build_node(_proc(start=start), _profile())
     ctx = _Ctx()
     node.setup(ctx)
     node.tick(ctx, _Inbox(_state(q_stand, 1000)))  # standing, and the model is updated
@@ -147,13 +148,13 @@ def test_before_the_first_command_the_osc_walks_or_stands_as_configured(q_stand,
 
 def test_a_bad_start_value_names_the_key():
     with pytest.raises(ConfigError, match="start"):
-        make_node(_proc(start="run"), _profile())
+        build_node(_proc(start="run"), _profile())
 
 
 def test_hold_until_plan_sends_zero_torque_off_until_the_first_plan(q_stand):
     """``hold_until_plan``: mode 3 (off), zero torque, while no plan has come (the holder
     keeps the robot); from the first plan on the controller runs."""
-    node = make_node(_proc(hold_until_plan=True), _profile())
+    node = build_node(_proc(hold_until_plan=True), _profile())
     ctx = _Ctx()
     node.setup(ctx)
     node.tick(ctx, _Inbox(_state(q_stand, 1000)))
@@ -167,9 +168,9 @@ def test_hold_until_plan_sends_zero_torque_off_until_the_first_plan(q_stand):
 
 def test_a_bad_hold_until_plan_value_names_the_key():
     with pytest.raises(ConfigError, match="hold_until_plan"):
-        make_node(_proc(hold_until_plan="yes"), _profile())
+        build_node(_proc(hold_until_plan="yes"), _profile())
     with pytest.raises(ConfigError, match="stand_first_s"):
-        make_node(_proc(stand_first_s=-2), _profile())
+        build_node(_proc(stand_first_s=-2), _profile())
 
 
 def test_stand_first_keeps_standing_on_a_walking_plan_then_walks(q_stand):
@@ -177,7 +178,7 @@ def test_stand_first_keeps_standing_on_a_walking_plan_then_walks(q_stand):
     releases after standing), whatever the command; then the walking plan is taken up."""
     from processes.osc.controller import STANDING, WALKING
 
-    node = make_node(_proc(stand_first_s=0.5), _profile())
+    node = build_node(_proc(stand_first_s=0.5), _profile())
     ctx = _Ctx()
     node.setup(ctx)
     node.tick(ctx, _Inbox(_state(q_stand, 1000)))
@@ -194,7 +195,7 @@ def test_an_osc_restarted_mid_walk_walks_on_at_once_in_single_stance(q_stand):
     walking robot fall 1.4 s later)."""
     from processes.osc.controller import WALKING
 
-    node = make_node(_proc(hold_until_plan=True, stand_first_s=1.2), _profile())
+    node = build_node(_proc(hold_until_plan=True, stand_first_s=1.2), _profile())
     ctx = _Ctx()
     node.setup(ctx)
     plan = _ds_plan(node, 1000)

@@ -6,8 +6,9 @@ import mujoco
 import numpy as np
 
 from processes.osc.controller import OscController
-from processes.osc.tasks import OscParams
+from processes.osc.tasks import DEFAULT_GAINS_FILE, OscGains, OscParams
 from processes.osc.walking import DOUBLE_AFTER_LEFT, SINGLE_LEFT
+from runtime.params import load
 
 
 class _Plan:
@@ -101,7 +102,7 @@ def test_double_stance_plan_uses_all_four_contact_points(q_stand):
 
 
 def test_torques_stay_within_limits_for_huge_tracking_errors(q_stand):
-    params = OscParams.from_yaml()
+    params = OscParams.from_gains(load(OscGains, DEFAULT_GAINS_FILE))
     params.standing.com.kp[:] = 1e5  # demand an impossible CoM acceleration
     params.standing.com.refresh()
     params.standing.com_offset_x = 0.1
@@ -123,7 +124,7 @@ def test_torques_stay_within_limits_for_huge_tracking_errors(q_stand):
 def test_mpfc_ankle_torque_becomes_the_ground_moment_about_the_stance_foot(q_stand):
     """Section V-D with the ALIP sign: u is the ground's moment on the robot about the stance
     contact point (the blade midpoint the ALIP state is measured from), stance-frame y axis."""
-    params = OscParams.from_yaml()
+    params = OscParams.from_gains(load(OscGains, DEFAULT_GAINS_FILE))
     params.walking.ankle_torque_weight = 1e4  # make the cost dominate for the check
     osc = OscController(params)
     osc.update(0.0, q_stand, np.zeros(32))

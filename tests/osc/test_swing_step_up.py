@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from processes.osc.tasks import OscParams
+from processes.osc.tasks import DEFAULT_GAINS_FILE, OscGains
 from processes.osc.walking import SwingFootTrajectory, swing_midpoint, swing_waypoints
+from runtime.params import load
 
 HALF_AXIS = 0.08  # Cassie's foot blade: capsule end points +-8 cm from its centre
 RADIUS = 0.02  # and its radius
@@ -45,7 +46,7 @@ def test_step_up_swing_clears_a_riser_just_ahead_of_the_toe_or_just_behind_the_h
     """A 15 cm step 30 cm ahead (the 27 cm stairs' step-to gait): the riser may be 2 cm ahead
     of the toe at lift-off or 2 cm behind the heel at touchdown (the footholds leave only the
     margin beyond the foot); with riser_gap 0.05 both are the riser halfway."""
-    w = OscParams.from_yaml().walking
+    w = load(OscGains, DEFAULT_GAINS_FILE).walking
     traj = SwingFootTrajectory(w.swing_degree, step_up_min=w.swing_step_up_min,
                                step_up_clearance=w.swing_step_up_clearance,
                                step_up_height=w.swing_step_up_height,

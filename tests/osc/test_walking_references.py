@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from processes.osc.tasks import OscParams
+from processes.osc.tasks import DEFAULT_GAINS_FILE, OscGains, OscParams
 from processes.osc.walking import ComHeightPlane, SwingFootTrajectory, swing_midpoint
+from runtime.params import load
 
 
 def test_clearance_midpoint_is_vertical_for_small_steps_and_normal_for_long_ones():
@@ -53,7 +54,7 @@ def test_swing_polynomial_meets_end_mid_and_continuity_constraints_of_23():
 
 
 def test_com_plane_follows_step_height_low_pass_and_clip():
-    p = OscParams.from_yaml().walking
+    p = OscParams.from_gains(load(OscGains, DEFAULT_GAINS_FILE)).walking
     plane = ComHeightPlane(p)
     st = np.zeros(3)
     nxt = np.array([0.4, 0.0, 0.1])  # 10 cm step up, 40 cm ahead

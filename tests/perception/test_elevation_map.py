@@ -18,6 +18,7 @@ from processes.perception import (
     transform_points,
 )
 from runtime.errors import ConfigError
+from runtime.params import load
 
 REPO = Path(__file__).resolve().parents[2]
 PARAMS = ElevationMapParams(length_m=1.0, resolution_m=0.05)   # 20 x 20 cells
@@ -177,21 +178,20 @@ def test_points_outside_the_map_are_ignored() -> None:
     assert status == "no points in map"
 
 
-def test_parameters_load_from_both_profiles_and_reject_bad_values(tmp_path: Path) -> None:
+def test_parameters_load_from_both_variants_and_reject_bad_values(tmp_path: Path) -> None:
     path = REPO / "hw_config" / "gains" / "elevation_map.yaml"
-    sim = ElevationMapParams.from_yaml(path)
-    hw = ElevationMapParams.from_yaml(path, "hardware")
+    sim = load(ElevationMapParams, path)
+    hw = load(ElevationMapParams, path, "hardware")
     assert (sim.length_m, sim.resolution_m, sim.cells) == (2.5, 0.025, 100)   # Table VIII
     assert (hw.length_m, hw.resolution_m, hw.cells) == (3.0, 0.03, 100)
     assert sim.drift_patch_px == 4
     bad = tmp_path / "em.yaml"
-    bad.write_text("default_profile: s\nprofiles:\n  s:\n    resolution_m: -0.1\n")
-    with pytest.raises(ConfigError, match="resolution_m"):
-        ElevationMapParams.from_yaml(bad)
-    bad.write_text("default_profile: s\nprofiles:\n  s:\n    min_depth_m: 2.0\n"
-                   "    max_depth_m: 1.0\n")
-    with pytest.raises(ConfigError, match="max_depth_m"):
-        ElevationMapParams.from_yaml(bad)
+    bad.write_text("variants:\n  s:\n    resolution_m: -0.1\n")
+    with pytest.raises(ConfigError, match=r"em.yaml: variants.s.resolution_m: out of range"):
+        load(ElevationMapParams, bad, "s")
+    bad.write_text("min_depth_m: 2.0\nmax_depth_m: 1.0\n")
+    with pytest.raises(ConfigError, match=r"em.yaml: max_depth_m: must exceed min_depth_m"):
+        load(ElevationMapParams, bad)
 
 
 def test_a_riser_seen_edge_on_does_not_drag_the_edge_cell_down() -> None:

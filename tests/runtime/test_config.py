@@ -132,15 +132,16 @@ def test_profile_by_name_is_found_in_hw_config_not_a_same_named_folder(monkeypat
 
 def test_a_key_written_twice_is_an_error_naming_the_file_and_line(tmp_path):
     """PyYAML keeps the last of two equal keys silently; hw_config files must not."""
-    from processes.osc.tasks import OscParams
+    from processes.osc.tasks import OscGains
     from runtime.config import load_yaml
+    from runtime.params import load
 
     f = tmp_path / "gains.yaml"
     f.write_text("qp:\n  w: 1\nsafety:\n  fall_height: 0.6\n  fall_height: 0.2\n")
     with pytest.raises(ConfigError) as e:
         load_yaml(f)
     with pytest.raises(ConfigError, match="twice"):  # a process's own gains reader too
-        OscParams.from_yaml(f)
+        load(OscGains, f)
     assert "gains.yaml" in str(e.value)
     assert "'fall_height' twice (first on line 4)" in str(e.value)
 

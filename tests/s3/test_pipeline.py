@@ -14,6 +14,7 @@ from processes.s3 import synthetic as syn
 from processes.s3.metrics import coverage_mask, frame_iou
 from processes.s3.planes import fit_planes, prism_halfspaces
 from runtime.errors import ConfigError
+from runtime.params import load
 
 RES = 0.025
 SHAPE = (100, 100)
@@ -172,18 +173,19 @@ def test_iou_is_one_for_the_same_terrain_seen_from_a_moved_map() -> None:
     assert frame_iou(left, ORIGIN, 1 - left, ORIGIN, RES) == 0.0
 
 
-def test_parameters_load_from_both_profiles() -> None:
+def test_parameters_load_from_both_variants() -> None:
     path = REPO / "hw_config" / "gains" / "s3.yaml"
-    sim = S3Params.from_yaml(path)
-    hw = S3Params.from_yaml(path, "hardware")
+    sim = load(S3Params, path)
+    hw = load(S3Params, path, "hardware")
     assert (sim.k_hyst, sim.inpainting) == (0.4, "lnv")       # Table VIII, simulation
     assert (hw.k_hyst, hw.inpainting) == (0.6, "ns")          # Table VIII, hardware
     assert sim.concavity_limit_m == 0.25 and sim.k_safe == 0.7
+    assert load(S3Params, path, "simulation") == sim
 
 
 @pytest.mark.parametrize("key, value, words", [
     ("k_hyst", 1.5, "out of range"),
-    ("inpainting", "telea", "unknown value"),
+    ("inpainting", "telea", "not one of the allowed values"),
     ("inclination_kernel_px", 4, "odd"),
     ("margin_kernel_px", 2.5, "integer"),
     ("k_saef", 0.7, "unknown key"),
@@ -192,17 +194,17 @@ def test_parameters_load_from_both_profiles() -> None:
 def test_bad_parameter_raises_config_error_naming_the_key(tmp_path: Path, key: str,
                                                            value: object, words: str) -> None:
     path = tmp_path / "s3.yaml"
-    text = "default_profile: simulation\nprofiles:\n  simulation:\n"
+    text = "variants:\n  simulation:\n"
     text += f"    {key}: {value!r}\n".replace("'", '"')
     path.write_text(text)
     with pytest.raises(ConfigError) as info:
-        S3Params.from_yaml(path)
-    assert key in info.value.key and words in str(info.value)
+        load(S3Params, path, "simulation")
+    assert info.value.key == f"variants.simulation.{key}" and words in str(info.value)
     assert str(path) in str(info.value)
 
 
-def test_unknown_profile_raises_config_error(tmp_path: Path) -> None:
+def test_unknown_variant_raises_config_error(tmp_path: Path) -> None:
     path = tmp_path / "s3.yaml"
-    path.write_text("default_profile: lab\nprofiles:\n  simulation: {}\n")
-    with pytest.raises(ConfigError, match="unknown profile"):
-        S3Params.from_yaml(path)
+    path.write_text("default_variant: lab\nvariants:\n  simulation: {}\n")
+    with pytest.raises(ConfigError, match="no variant 'lab'"):
+        load(S3Params, path)

@@ -13,6 +13,7 @@ from processes.perception import ElevationMap, ElevationMapParams
 from processes.s3 import S3Pipeline, S3Result
 from processes.s3 import synthetic as syn
 from processes.s3.metrics import frame_iou
+from runtime.params import load
 
 RES = 0.025
 REPO = Path(__file__).resolve().parents[2]
@@ -66,7 +67,7 @@ def test_mapped_walk_gives_footholds_on_the_terrain(terrain: str) -> None:
     """Depth frames -> elevation map (drift correction) -> S3, over 8 s of walking."""
     height = (syn.stairs(start_x=0.0, rise=0.1, run=0.4, steps=6) if terrain == "stairs"
               else syn.stepping_stones(seed=0, start_x=0.0))
-    params = ElevationMapParams.from_yaml(REPO / "hw_config" / "gains" / "elevation_map.yaml")
+    params = load(ElevationMapParams, REPO / "hw_config" / "gains" / "elevation_map.yaml")
     emap = ElevationMap(dataclasses.replace(params, decimation=1))
     pipe = S3Pipeline()
     prev = None

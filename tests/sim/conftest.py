@@ -70,9 +70,11 @@ class Driver:
 
 
 def make_proc(params: dict[str, Any] | None = None, gains: Path | None = None) -> ProcessConfig:
+    """The sim's process config; ``gains`` default hw_config/gains/sim.yaml (its values are
+    the defaults of every key)."""
     return ProcessConfig(name="sim", host="target", module="sim.process",
                          source_file=HW_CONFIG / "processes.yaml", rate_hz=2000.0,
-                         params=params or {}, gains_file=gains)
+                         params=params or {}, gains_file=gains or HW_CONFIG / "gains" / "sim.yaml")
 
 
 def make_profile(mode: str) -> Profile:
@@ -84,13 +86,13 @@ def make_profile(mode: str) -> Profile:
 @pytest.fixture
 def driver_factory():
     """Build a sim node from params/gains under a mode and wrap it in a Driver; closes nodes."""
-    from sim.process import make_node
+    from runtime.builder import build_node
 
     made: list[Any] = []
 
     def build(mode: str, params: dict[str, Any] | None = None, gains: Path | None = None
               ) -> Driver:
-        node = make_node(make_proc(params, gains), make_profile(mode))
+        node = build_node(make_proc(params, gains), make_profile(mode))
         made.append(node)
         return Driver(node)
 

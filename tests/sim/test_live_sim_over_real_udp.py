@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from runtime.builder import build_node
 from runtime.cassie_packets import (
     STATUS_HOLDER_ENGAGED,
     STATUS_LOCKSTEP,
@@ -21,7 +22,7 @@ from runtime.cassie_packets import (
 )
 from runtime.config_types import ChannelConfig, ProcessConfig, Profile
 from runtime.loops import LiveRunner
-from sim.process import SimNode, make_node
+from sim.process import SimNode
 
 from .conftest import HW_CONFIG
 
@@ -90,7 +91,7 @@ def _setup(mode: str, lcm_url: str, gains: Path) -> tuple[SimNode, ProcessConfig
     profile = Profile(name="live-test", path=HW_CONFIG / "test.yaml", hw_config_dir=HW_CONFIG,
                       mode=mode, lcm_url=lcm_url, hosts={}, channels=chans,  # type: ignore[arg-type]
                       processes={"sim": proc}, launch=("sim",))
-    node = make_node(proc, profile)
+    node = build_node(proc, profile)
     assert isinstance(node, SimNode)
     return node, proc, profile, Peer(out_port, in_port)
 

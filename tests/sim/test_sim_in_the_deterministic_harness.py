@@ -7,10 +7,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from runtime.builder import build_node
 from runtime.cassie_packets import InputPacket, LinkCounter, OutputPacket
 from runtime.harness import Binding, Harness
 from runtime.node import Context, Inbox, Node
-from sim.process import make_node
 
 from .conftest import make_proc, make_profile
 
@@ -38,7 +38,7 @@ class JointPd(Node):
 
 def _run() -> list[Any]:
     proc = make_proc({"terrain": "stairs", "drive": "periodic"})
-    sim = make_node(proc, make_profile("lockstep"))
+    sim = build_node(proc, make_profile("lockstep"))
     assert sim.trigger_role is None and sim.render_mode == "inline"  # deterministic frames
     h = Harness([
         Binding(sim, inputs={"command": "ROBOT_INPUT"},

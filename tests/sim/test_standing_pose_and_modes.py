@@ -52,13 +52,13 @@ def test_camera_render_off_means_no_depth_camera_and_a_bad_value_lists_it():
     a core); YAML's bare ``off`` (read as false) means the same."""
     import pytest
 
+    from runtime.builder import build_node
     from runtime.errors import ConfigError
-    from sim.process import make_node
 
     from .conftest import make_proc, make_profile
 
     for value in ("off", False):
-        node = make_node(make_proc({"terrain": "flat", "camera_render": value}),
+        node = build_node(make_proc({"terrain": "flat", "camera_render": value}),
                          make_profile("lockstep"))
         try:
             assert node.render_mode == "off"
@@ -66,5 +66,5 @@ def test_camera_render_off_means_no_depth_camera_and_a_bad_value_lists_it():
         finally:
             node.close()
     with pytest.raises(ConfigError, match=r"camera_render.*off"):
-        make_node(make_proc({"terrain": "flat", "camera_render": "never"}),
+        build_node(make_proc({"terrain": "flat", "camera_render": "never"}),
                   make_profile("lockstep"))

@@ -22,7 +22,8 @@ def live_configs(name: str, module: str, lcm_url: str, inputs: dict[str, Any],
                  outputs: dict[str, Any]) -> tuple[Any, Any]:
     """A ProcessConfig and Profile for running one node with ``LiveRunner`` in a test.
 
-    ``inputs``/``outputs`` map role -> LCM channel name or ("udp", port)."""
+    ``inputs``/``outputs`` map role -> LCM channel name or ("udp", port); the gains file is
+    ``hw_config/gains/NAME.yaml`` when there is one."""
     from pathlib import Path
 
     from runtime.config_types import ChannelConfig, ProcessConfig, Profile
@@ -39,6 +40,7 @@ def live_configs(name: str, module: str, lcm_url: str, inputs: dict[str, Any],
         rate_hz=2000.0, deadline_ms=1.0,
         inputs={r: ch(r, v) for r, v in inputs.items()},
         outputs={r: ch(r, v) for r, v in outputs.items()},
+        gains_file=gains if (gains := hw / "gains" / f"{name}.yaml").is_file() else None,
     )
     profile = Profile(name="test", path=hw / "test.yaml", hw_config_dir=hw, mode="realtime",
                       lcm_url=lcm_url, hosts={}, channels={}, processes={}, launch=())

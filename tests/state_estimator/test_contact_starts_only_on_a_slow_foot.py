@@ -7,6 +7,7 @@ import numpy as np
 
 from processes.state_estimator.contact import ContactParams, SpringContact
 from processes.state_estimator.params import EstimatorParams
+from runtime.params import read
 
 P = ContactParams()
 LOADED = -np.full((2, 2), 0.03)  # both legs' springs deflected: ~134 N each, over on_n
@@ -35,5 +36,5 @@ def test_a_foot_in_contact_stays_in_contact_while_loaded_whatever_its_speed():
 
 
 def test_the_speed_threshold_comes_from_the_gains_file():
-    p = EstimatorParams.from_dict({"contact": {"touchdown_speed_mps": 0.5}})
+    p = read(EstimatorParams, {"contact": {"touchdown_speed_mps": 0.5}}, "se.yaml")
     assert p.contact.touchdown_speed_mps == 0.5

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from lcmtypes import contact_t, robot_state_t
-from processes.state_estimator.process import make_node
+from runtime.builder import build_node
 from runtime.bus import Bus
 from runtime.cassie_packets import OutputPacket, encode_input
 from runtime.loops import LiveRunner
@@ -30,7 +30,7 @@ class LiveEstimator:
             outputs={"state": "TEST_SE_STATE", "network_state": "NETWORK_TEST_SE_STATE",
                      "contact": "TEST_SE_CONTACT"},
         )
-        self.node = make_node(proc, profile)
+        self.node = build_node(proc, profile)
         self.runner = LiveRunner(self.node, proc, profile)
         self.bus = Bus(lcm_url, source="test")
         self.states = self.bus.subscribe("TEST_SE_STATE", robot_state_t, "each", capacity=100000)

@@ -8,14 +8,15 @@ import pytest
 
 from processes.state_estimator.params import DEFAULT_GAINS_FILE, EstimatorParams
 from processes.torque_bridge.bridge import DEFAULT_GAINS_FILE as BRIDGE_GAINS
-from processes.torque_bridge.bridge import BridgeParams
+from processes.torque_bridge.bridge import BridgeGains, BridgeParams
 from runtime.errors import ConfigError
+from runtime.params import load
 
 
 def test_shipped_gains_files_load():
-    p = EstimatorParams.from_yaml(DEFAULT_GAINS_FILE)
+    p = load(EstimatorParams, DEFAULT_GAINS_FILE)
     assert p.network_every == 10 and p.contact.off_n < p.contact.on_n
-    b = BridgeParams.from_yaml(BRIDGE_GAINS)
+    b = BridgeParams.from_gains(load(BridgeGains, BRIDGE_GAINS))
     assert b.fallback in ("zero", "damping") and len(b.torque_limit) == 10
 
 
@@ -38,7 +39,7 @@ def test_bad_estimator_values_raise_config_error_naming_the_key(tmp_path: Path, 
     f = tmp_path / "se.yaml"
     f.write_text(yaml.safe_dump(doc))
     with pytest.raises(ConfigError) as exc:
-        EstimatorParams.from_yaml(f)
+        load(EstimatorParams, f)
     assert exc.value.key == key and str(f) in str(exc.value)
 
 
@@ -61,5 +62,5 @@ def test_bad_bridge_values_raise_config_error_naming_the_key(tmp_path: Path, doc
     f = tmp_path / "tb.yaml"
     f.write_text(yaml.safe_dump(doc))
     with pytest.raises(ConfigError) as exc:
-        BridgeParams.from_yaml(f)
+        load(BridgeGains, f)
     assert exc.value.key == key

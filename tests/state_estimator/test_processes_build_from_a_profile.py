@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from runtime.builder import build_node
 from runtime.config import HW_CONFIG_DIR, load_profile
 from runtime.errors import ConfigError
 
@@ -42,12 +43,10 @@ def _profile(tmp_path: Path, extra: str = "") -> Path:
 
 
 def test_estimator_and_bridge_build_from_hw_config(tmp_path: Path):
-    import importlib
-
     prof = load_profile(str(_profile(tmp_path)))
     for name in ("state_estimator", "torque_bridge"):
         proc = prof.processes[name]
-        node = importlib.import_module(proc.module).make_node(proc, prof)
+        node = build_node(proc, prof)
         assert node.name == name
         assert set(node.inputs) == set(proc.inputs) and set(node.outputs) == set(proc.outputs)
     est = prof.processes["state_estimator"]
@@ -59,11 +58,9 @@ def test_estimator_and_bridge_build_from_hw_config(tmp_path: Path):
 def test_unknown_params_are_config_errors(tmp_path: Path):
     import dataclasses
 
-    from processes.state_estimator.process import make_node
-
     prof = load_profile(str(_profile(tmp_path)))
 
     proc = dataclasses.replace(prof.processes["state_estimator"], params={"gain": 1})
     with pytest.raises(ConfigError) as exc:
-        make_node(proc, prof)
+        build_node(proc, prof)
     assert exc.value.key == "processes.state_estimator.params.gain"

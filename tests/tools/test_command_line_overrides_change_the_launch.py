@@ -4,13 +4,14 @@ launch's log folder; a key that is not there is a clear error before anything st
 
 from __future__ import annotations
 
+import importlib
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from processes.osc.process import make_node as make_osc
+from runtime.builder import build_node
 from runtime.config import HW_CONFIG_DIR, load_profile
 from runtime.errors import ConfigError
 from tests.conftest import REPO
@@ -26,11 +27,11 @@ def test_a_gain_a_param_a_process_key_and_the_mode_reach_the_built_processes(
     assert profile.mode == "lockstep"
     osc = profile.processes["osc"]
     assert osc.nice == -5
-    assert make_osc(osc, profile).params.walking.swing_clearance == pytest.approx(0.12)
+    assert build_node(osc, profile).params.walking.swing_clearance == pytest.approx(0.12)
     assert profile.processes["torque_bridge"].params["release_after_s"] == 2.5
     # the rest as in the profile, and the profile itself untouched
     base = load_profile(HW_CONFIG_DIR / "sim.yaml")
-    assert make_osc(base.processes["osc"], base).params.walking.swing_clearance == 0.15
+    assert build_node(base.processes["osc"], base).params.walking.swing_clearance == 0.15
     assert profile.launch == base.launch
 
 
@@ -52,3 +53,19 @@ def test_the_launch_command_reports_a_bad_override_before_it_starts(tmp_path: Pa
                           capture_output=True, text=True, cwd=REPO, timeout=60)
     assert done.returncode == 2, done.stdout + done.stderr
     assert "walking.nope: no such gain" in done.stderr
+
+
+def test_a_gain_a_variant_sets_is_overridden_in_the_variant_that_runs(tmp_path: Path) -> None:
+    """The MPFC's gains file has the paper's two columns as variants; its simulation variant
+    sets the step width itself, so the override must reach it there, not only the top."""
+    from runtime.params import load
+
+    base = load_profile(HW_CONFIG_DIR / "sim.yaml")
+    mpfc = base.processes["mpfc"]
+    variant = mpfc.params.get("variant", "simulation")
+    out = write_overlay(HW_CONFIG_DIR / "sim.yaml", ["mpfc.gains.step_width_m:=0.17"],
+                        tmp_path)
+    profile = load_profile(out)
+    gains_cls = importlib.import_module(mpfc.module).Gains
+    assert load(gains_cls, mpfc.gains_file, variant).step_width_m == 0.15  # (as written)
+    assert load(gains_cls, profile.processes["mpfc"].gains_file, variant).step_width_m == 0.17

@@ -11,7 +11,7 @@ import numpy as np
 
 from lcmtypes import applied_input_t
 from processes.torque_bridge.bridge import SOURCE_COMMAND, SOURCE_WATCHDOG_DAMPING
-from processes.torque_bridge.process import make_node
+from runtime.builder import build_node
 from runtime.bus import Bus
 from runtime.cassie_packets import InputPacket
 from runtime.loops import LiveRunner
@@ -31,7 +31,7 @@ def test_live_bridge_sends_one_packet_per_state_acks_it_and_trips_its_watchdog(l
         outputs={"robot_input": ("udp", port), "applied_input": "TEST_TB_APPLIED"},
     )
     proc = dataclasses.replace(proc, params={"answer_on": "state"})
-    node = make_node(proc, profile)
+    node = build_node(proc, profile)
     runner = LiveRunner(node, proc, profile)
     thread = threading.Thread(target=runner.run, daemon=True)
     bus = Bus(lcm_url, source="test")
@@ -81,7 +81,7 @@ def test_live_bridge_in_real_time_sends_each_command_at_once_and_watches_the_sta
         inputs={"torque": "TEST_TB_TORQUE", "state": "TEST_TB_STATE"},
         outputs={"robot_input": ("udp", port), "applied_input": "TEST_TB_APPLIED"},
     )
-    node = make_node(proc, profile)  # a real-time profile: answer_on command
+    node = build_node(proc, profile)  # a real-time profile: answer_on command
     assert node.answer_on == "command"
     runner = LiveRunner(node, proc, profile)
     thread = threading.Thread(target=runner.run, daemon=True)

@@ -8,16 +8,22 @@ import mujoco
 import numpy as np
 
 from processes.state_estimator.kinematics import load_model
-from processes.torque_bridge.bridge import SOURCE_COMMAND, SOURCE_WATCHDOG_DAMPING, BridgeParams
+from processes.torque_bridge.bridge import (
+    SOURCE_COMMAND,
+    SOURCE_WATCHDOG_DAMPING,
+    BridgeGains,
+    BridgeParams,
+)
 from processes.torque_bridge.process import motor_dofs
 from runtime.cassie_packets import MOTOR_NAMES
+from runtime.params import load
 from tests.torque_bridge.support import MOTOR_DOFS, BridgeRig
 
 GAINS = Path(__file__).resolve().parents[2] / "hw_config" / "gains" / "torque_bridge.yaml"
 
 
 def test_limits_in_hw_config_are_the_models_motor_limits():
-    params = BridgeParams.from_yaml(GAINS)
+    params = BridgeParams.from_gains(load(BridgeGains, GAINS))
     m = load_model()
     act = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in MOTOR_NAMES]
     model_limit = m.actuator_gear[act, 0] * np.abs(m.actuator_ctrlrange[act]).max(axis=1)
@@ -27,7 +33,7 @@ def test_limits_in_hw_config_are_the_models_motor_limits():
 
 
 def test_over_limit_torques_are_clamped_per_motor_and_counted():
-    params = BridgeParams.from_yaml(GAINS)
+    params = BridgeParams.from_gains(load(BridgeGains, GAINS))
     limit = np.array(params.torque_limit)
     rig = BridgeRig(params)
     cmd = np.array([500.0, -500.0, 10.0, -10.0, 46.0, 0.0, 112.4, -300.0, 195.2, -45.5])

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from processes.torque_bridge.process import TorqueBridgeNode, make_node
+from processes.torque_bridge.process import TorqueBridgeNode
+from runtime.builder import build_node
 from runtime.cassie_packets import FLAG_RELEASE_HOLDER, InputPacket
 from runtime.config import load_profile
 from runtime.errors import ConfigError
@@ -58,7 +59,7 @@ def test_release_flag_after_one_second_of_standing_and_not_before():
 
 def test_sim_profile_stands_in_the_holder_before_release(tmp_path):
     prof = load_profile("hw_config/sim.yaml")
-    node = make_node(prof.processes["torque_bridge"], prof)
+    node = build_node(prof.processes["torque_bridge"], prof)
     assert node.release_after_us == 1_000_000
     assert prof.processes["sim"].params["holder_release"] == "manual"
     assert prof.processes["osc"].params["hold_until_plan"] is True
@@ -70,4 +71,4 @@ def test_a_bad_release_after_is_a_config_error_naming_the_key(value):
     proc = prof.processes["torque_bridge"]
     proc.params["release_after_s"] = value
     with pytest.raises(ConfigError, match="release_after_s"):
-        make_node(proc, prof)
+        build_node(proc, prof)

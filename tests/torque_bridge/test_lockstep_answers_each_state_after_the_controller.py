@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from processes.torque_bridge.process import TorqueBridgeNode, make_node
+from processes.torque_bridge.process import TorqueBridgeNode
+from runtime.builder import build_node
 from runtime.config import HW_CONFIG_DIR, load_profile
 from runtime.errors import ConfigError
 from runtime.harness import Binding, Harness
@@ -53,11 +54,11 @@ def test_a_state_is_answered_only_by_its_own_torque_with_the_previous_command():
 
 def test_auto_answers_each_command_in_real_time_and_each_torque_in_lockstep():
     sim = load_profile(HW_CONFIG_DIR / "sim.yaml")
-    node = make_node(sim.processes["torque_bridge"], sim)
+    node = build_node(sim.processes["torque_bridge"], sim)
     assert node.answer_on == "command" and node.trigger_role == "torque"
     assert node.trigger_timeout_s is not None  # the watchdog ticks when commands stop
     exp = load_profile(HW_CONFIG_DIR / "experiment.yaml")
-    assert make_node(exp.processes["torque_bridge"], exp).trigger_role == "torque"
+    assert build_node(exp.processes["torque_bridge"], exp).trigger_role == "torque"
 
 
 def test_a_bad_answer_on_value_names_the_key():
@@ -66,4 +67,4 @@ def test_a_bad_answer_on_value_names_the_key():
     sim = load_profile(HW_CONFIG_DIR / "sim.yaml")
     proc = dataclasses.replace(sim.processes["torque_bridge"], params={"answer_on": "never"})
     with pytest.raises(ConfigError, match="answer_on"):
-        make_node(proc, sim)
+        build_node(proc, sim)

@@ -1,0 +1,52 @@
+"""The estimator built from a profile (``runtime.builder.build_node``): it takes no params,
+and a bad gains file (an unknown key, a value out of range, on_n not above off_n) is a
+ConfigError naming the file, the dotted key and what is allowed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from runtime.builder import build_node
+from runtime.config import load_profile
+from runtime.errors import ConfigError
+from tests.conftest import one_process_profile
+
+
+def _build(tmp_path: Path, **kw: Any) -> Any:
+    profile = load_profile(one_process_profile(tmp_path, "state_estimator", **kw))
+    return build_node(profile.processes["state_estimator"], profile)
+
+
+def test_the_shipped_settings_build(tmp_path: Path) -> None:
+    node = _build(tmp_path)
+    assert node.name == "state_estimator" and node.params.network_every == 10
+    assert node.params.init.xy_m == (0.0, 0.0)
+
+
+def test_any_param_is_an_unknown_key_naming_the_profile(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError) as err:
+        _build(tmp_path, params={"network_every": 5})
+    assert str(err.value) == (f"{tmp_path / 'one.yaml'}: processes.state_estimator.params."
+                              "network_every: unknown key (allowed: none: it takes no keys)")
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (lambda g: g["inekf"].__setitem__("gyros", 0.1),
+     "inekf.gyros: unknown key (allowed: accel, contact, gyro, init_pos, init_rot, init_vel, "
+     "kinematics, swing)"),
+    (lambda g: g["inekf"].__setitem__("gyro", 0.0),
+     "inekf.gyro: out of range: 0.0 (allowed: (0.0, inf] rad/s/sqrt(Hz))"),
+    (lambda g: g.__setitem__("network_every", 2.5),
+     "network_every: must be an integer, got 2.5 (allowed: [1, inf])"),
+    (lambda g: g["init"].__setitem__("xy_m", [1.0]),
+     "init.xy_m: must be a list of 2, got 1: [1.0]"),
+    (lambda g: g["contact"].__setitem__("off_n", 95.0),
+     "contact.off_n: 95.0 must be below on_n (90.0) for hysteresis (allowed: [0, 90.0) N)"),
+])
+def test_a_bad_gains_file_names_file_key_and_allowed(tmp_path: Path, change, message) -> None:
+    with pytest.raises(ConfigError) as err:
+        _build(tmp_path, gains=change)
+    assert str(err.value) == f"{tmp_path / 'gains.yaml'}: {message}"
