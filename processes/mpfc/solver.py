@@ -27,6 +27,19 @@ STANCES = ("left", "right")
 
 
 @dataclass
+class Instance:
+    """Arguments of one `MpfcSolver.solve` call."""
+
+    x_alip: np.ndarray
+    stance: str
+    p_stance: np.ndarray
+    t_remaining_s: float
+    vdes: np.ndarray
+    footholds: list[Foothold]
+    yaw: float
+
+
+@dataclass
 class MpfcSolution:
     """One MPFC solve. `footsteps` etc. are None unless `has_plan` (status optimal, or
     time_limited with an incumbent); on no plan the process keeps its previous one."""
@@ -97,8 +110,6 @@ class MpfcSolver:
         t_start = time.perf_counter()
         p = self.params
         if self.recorder is not None:
-            from processes.mpfc.instances import Instance
-
             self.recorder.append(Instance(
                 np.array(x_alip, dtype=float), stance, np.array(p_stance, dtype=float),
                 float(t_remaining_s), np.array(vdes, dtype=float), footholds, float(yaw)))

@@ -7,10 +7,10 @@ import dataclasses
 import numpy as np
 
 from processes.mpfc import MpfcParams, MpfcSolution, MpfcSolver
-from processes.mpfc.gurobi_backend import exhaustive_reference
-from processes.mpfc.instances import Instance
 from processes.mpfc.problem import build_miqp
+from processes.mpfc.solver import Instance
 from runtime.params import check
+from tools.testbed.gurobi_reference import exhaustive_reference
 
 
 def solve(solver: MpfcSolver, inst: Instance, **over) -> MpfcSolution:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from processes.mpfc.instances import random_instance
 from processes.mpfc.problem import MpfcModel
 from tools.benchmarks.mpfc import replay
+from tools.testbed.mpfc_instances import random_instance
 
 
 def test_replay_reports_the_solve_time_figures_of_the_recorded_episodes(params):

@@ -9,8 +9,8 @@ import numpy as np
 from mpfc_test_helpers import objective_matches, reference, solve, with_params
 
 from processes.mpfc import MpfcSolver
-from processes.mpfc.instances import random_instance
 from processes.mpfc.search import SOLVED
+from tools.testbed.mpfc_instances import random_instance
 
 SLOW_OK = 10_000.0
 

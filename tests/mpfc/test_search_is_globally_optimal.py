@@ -8,9 +8,9 @@ import pytest
 from mpfc_test_helpers import objective_matches, reference, rel_err, solve, with_params
 
 from processes.mpfc import MpfcSolver
-from processes.mpfc.gurobi_backend import GurobiBackend, gurobi_available
-from processes.mpfc.instances import random_instance
 from processes.mpfc.problem import MpfcModel, build_miqp
+from tools.testbed.gurobi_reference import GurobiBackend, gurobi_available
+from tools.testbed.mpfc_instances import random_instance
 
 FOOTHOLD_COUNTS = [1, 2, 3, 4, 6, 8, 11, 14, 17, 20]
 SLOW_OK = 10_000.0  # ms: these tests are about the optimum, not the wall clock of a busy box

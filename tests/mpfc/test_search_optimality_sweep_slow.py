@@ -8,9 +8,9 @@ import pytest
 from mpfc_test_helpers import objective_matches, reference, rel_err, solve, with_params
 
 from processes.mpfc import MpfcSolver
-from processes.mpfc.gurobi_backend import GurobiBackend, gurobi_available
-from processes.mpfc.instances import random_instance
 from processes.mpfc.problem import build_miqp
+from tools.testbed.gurobi_reference import GurobiBackend, gurobi_available
+from tools.testbed.mpfc_instances import random_instance
 
 
 @pytest.mark.slow

@@ -8,7 +8,7 @@ from mpfc_test_helpers import solve, with_params
 
 from processes.mpfc import MpfcSolver
 from processes.mpfc.footholds import yaw_rotation
-from processes.mpfc.instances import random_instance
+from tools.testbed.mpfc_instances import random_instance
 
 
 def test_plan_satisfies_dynamics_timing_torque_crossover_and_footholds(params) -> None:

@@ -9,7 +9,7 @@ import pytest
 from mpfc_test_helpers import solve, with_params
 
 from processes.mpfc import Foothold, MpfcSolver
-from processes.mpfc.instances import random_instance
+from tools.testbed.mpfc_instances import random_instance
 
 
 def test_no_footholds_is_infeasible_without_a_plan(params) -> None:

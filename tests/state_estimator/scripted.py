@@ -1,11 +1,12 @@
-"""Test helpers: the scripted sim loop (from ``processes.state_estimator.scripted``) and live
+"""Test helpers: the scripted sim loop (from ``tools.testbed.estimator_motions``) and live
 runner configs for nodes bound to real UDP ports and LCM channels."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from processes.state_estimator.scripted import (  # noqa: F401  (re-exported for the tests)
+from tools.benchmarks.common import free_udp_port  # noqa: F401  (the one helper, for the tests)
+from tools.testbed.estimator_motions import (  # noqa: F401  (re-exported for the tests)
     MOTIONS,
     LoopRecord,
     ScriptedController,
@@ -15,7 +16,6 @@ from processes.state_estimator.scripted import (  # noqa: F401  (re-exported for
     sim_settings,
     targets,
 )
-from tools.benchmarks.common import free_udp_port  # noqa: F401  (the one helper, for the tests)
 
 
 def live_configs(name: str, module: str, lcm_url: str, inputs: dict[str, Any],

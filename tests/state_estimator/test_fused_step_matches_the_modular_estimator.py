@@ -31,7 +31,7 @@ FLOAT_TOL = {"rtol": 1e-12, "atol": 1e-12}
 @pytest.fixture(scope="module")
 def datagrams() -> list[bytes]:
     """2.5 s of the scripted ``steps`` motion (each leg lifted and set down), with faults."""
-    from processes.state_estimator.scripted import run_loop
+    from tools.testbed.estimator_motions import run_loop
 
     rec = run_loop("steps", 2.5)
     out = [bytes(p) for p in rec.packets]

@@ -3,25 +3,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from processes.mpfc.footholds import Foothold
 from processes.mpfc.problem import MpfcModel
-
-
-@dataclass
-class Instance:
-    """Arguments of one `MpfcSolver.solve` call."""
-
-    x_alip: np.ndarray
-    stance: str
-    p_stance: np.ndarray
-    t_remaining_s: float
-    vdes: np.ndarray
-    footholds: list[Foothold]
-    yaw: float
+from processes.mpfc.solver import Instance
 
 
 def random_polygon(rng: np.random.Generator, centre: np.ndarray, size: np.ndarray) -> np.ndarray:
