@@ -18,6 +18,18 @@ class mpfc_output_t(object):
 
     __dimensions__ = [None, None, None, [3], [3], [3], None, None, None, None, [2], None, ["num_footsteps", 3], None]
 
+    GAIT_LEFT_SS = 0
+    """ gait_state: the one list of the gait's phases (the MPFC sets it, the OSC acts on it) """
+    GAIT_RIGHT_SS = 1
+    GAIT_DS_AFTER_LEFT = 2
+    GAIT_DS_AFTER_RIGHT = 3
+    GAIT_STANDING = 4
+    SOLVE_OPTIMAL = 0
+    """ solve_status """
+    SOLVE_TIME_LIMITED = 1
+    SOLVE_INFEASIBLE = 2
+    SOLVE_ERROR = 3
+
     def __init__(self):
         self.header = lcmtypes.header_t()
         """ LCM Type: lcmtypes.header_t """

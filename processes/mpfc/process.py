@@ -44,9 +44,10 @@ from runtime.node import Node
 from runtime.params import spec
 
 LEFT, RIGHT = 0, 1
-GAIT_SS = (0, 1)  # single stance on left / right
-GAIT_DS = (2, 3)  # double stance after a left / right touchdown
-GAIT_STANDING = 4
+# (mpfc_output_t's consts: the one list of the gait's phases)
+GAIT_SS = (mpfc_output_t.GAIT_LEFT_SS, mpfc_output_t.GAIT_RIGHT_SS)  # single stance on l / r
+GAIT_DS = (mpfc_output_t.GAIT_DS_AFTER_LEFT, mpfc_output_t.GAIT_DS_AFTER_RIGHT)  # after l / r
+GAIT_STANDING = mpfc_output_t.GAIT_STANDING
 STATUS = {"optimal": 0, "time_limited": 1, "infeasible": 2}
 DEFAULT_MAX_HEIGHT_M = 0.35  # two 15 cm stairs (the horizon's second step) and some margin
 VARIANTS = ("hardware", "simulation")  # the columns of Table V

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from lcmtypes import mpfc_output_t
 from runtime.params import load
 
 from .model import CassieModel
@@ -233,7 +234,8 @@ class OscController:
                                       t - plan_t <= self.params.safety.plan_timeout_s)
         plan_walks = plan is not None and int(plan.gait_state) != GAIT_STANDING
         if self.mode == STANDING:
-            ok = want_walk and fresh and plan_walks and int(getattr(plan, "solve_status", 0)) != 3
+            solved = int(getattr(plan, "solve_status", 0)) != mpfc_output_t.SOLVE_ERROR
+            ok = want_walk and fresh and plan_walks and solved
             # hand over only in double stance: the robot stands on both feet, so does the plan
             if ok and int(plan.gait_state) in (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT):
                 self.mode = WALKING

@@ -18,6 +18,8 @@ from typing import Any
 import numba
 import numpy as np
 
+from lcmtypes import mpfc_output_t
+
 from .model import LEFT, RIGHT, CassieModel
 from .qp import OscQP, TaskRows
 from .tasks import (
@@ -30,7 +32,11 @@ from .tasks import (
 
 _jit = numba.njit(cache=True, nogil=True)
 
-SINGLE_LEFT, SINGLE_RIGHT, DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, STANDING = range(5)
+# the gait phases of mpfc_output_t.gait_state (its consts: one list, in the message type)
+SINGLE_LEFT, SINGLE_RIGHT = mpfc_output_t.GAIT_LEFT_SS, mpfc_output_t.GAIT_RIGHT_SS
+DOUBLE_AFTER_LEFT = mpfc_output_t.GAIT_DS_AFTER_LEFT
+DOUBLE_AFTER_RIGHT = mpfc_output_t.GAIT_DS_AFTER_RIGHT
+STANDING = mpfc_output_t.GAIT_STANDING
 _STANCE_MASKS = {
     LEFT: np.array([True, True, False, False]),
     RIGHT: np.array([False, False, True, True]),
