@@ -13,16 +13,11 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from runtime.robot import FOOT_BLADE_ENDS as _BLADE_ENDS
+from runtime.robot import FOOT_BLADE_RADIUS, SIDES, load_model
+
 #: Ends of Cassie's foot-blade collision capsule in the foot body frame, and its radius.
-FOOT_BLADE_ENDS = np.array([[-0.052821, 0.092622, 0.0], [0.069746, -0.010224, 0.0]])
-FOOT_BLADE_RADIUS = 0.02
-SIDES = ("left", "right")
-
-
-def load_model() -> mujoco.MjModel:
-    import mujoco_menagerie
-
-    return mujoco_menagerie.load("agility_cassie")
+FOOT_BLADE_ENDS = np.array(_BLADE_ENDS)
 
 
 class AlipKinematics:

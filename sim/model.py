@@ -1,6 +1,6 @@
 """Cassie from MuJoCo Menagerie, with terrain geometry, and a clean standing pose by IK.
 
-The model is loaded through ``mujoco_menagerie`` (offline: ``MENAGERIE_ROOT``) and edited as an
+The model comes from ``runtime.robot`` (the one loader; offline: ``MENAGERIE_ROOT``), edited as an
 ``MjSpec``: the terrain's boxes become static geoms, ``impratio`` is raised (10 cuts the
 creep of planted feet from about 1 cm to 2 mm over 10 s). The ``home`` keyframe leaves the
 rod closures about 1.5 mm off, so the start pose is solved by IK: rods closed, springs at
@@ -13,22 +13,17 @@ import functools
 from dataclasses import dataclass
 
 import mujoco
-import mujoco_menagerie
 import numpy as np
 from scipy.optimize import least_squares
 
 from runtime.cassie_packets import JOINT_NAMES, MOTOR_NAMES
+from runtime.robot import FOOT_BODIES, SIDES, load_spec
+from runtime.robot import SPRING_JOINTS as LEG_SPRINGS
 from sim.terrain import Terrain
 
-ROBOT = "agility_cassie"
-FOOT_BODIES = ("left-foot", "right-foot")
-SPRING_JOINTS = ("left-shin", "left-heel-spring", "right-shin", "right-heel-spring")
+#: every spring joint by its full name, in SIDES order
+SPRING_JOINTS = tuple(f"{s}-{j}" for s in SIDES for j in LEG_SPRINGS)
 TERRAIN_RGBA = ((0.55, 0.55, 0.5, 1.0), (0.45, 0.5, 0.55, 1.0))
-
-
-def load_spec() -> mujoco.MjSpec:
-    """The Menagerie scene (Cassie plus floor) as an editable spec."""
-    return mujoco_menagerie.get(ROBOT).spec()
 
 
 HOLDER_BODY = "pelvis-holder"

@@ -12,34 +12,27 @@ MuJoCo passes, one compiled kernel (numba, cached on disk) computes every point,
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import mujoco
 import numba
 import numpy as np
 
-#: Foot blade contact points in the foot body frame: the two ends of the collision capsule
-#: (menagerie cassie.xml), ordered (front, rear): at the standing pose world x is +0.06, -0.10 m.
-FOOT_CAPSULE_ENDS = np.array([[-0.052821, 0.092622, 0.0], [0.069746, -0.010224, 0.0]])
-FOOT_CAPSULE_RADIUS = 0.02
+from runtime.robot import (
+    FOOT_BLADE_ENDS,
+    FOOT_BLADE_RADIUS,
+    SIDES,
+    SPRING_JOINTS,
+    load_model,
+)
+
+#: Foot blade contact points in the foot body frame (front, rear), as arrays
+FOOT_CAPSULE_ENDS = np.array(FOOT_BLADE_ENDS)
+FOOT_CAPSULE_RADIUS = FOOT_BLADE_RADIUS
 
 LEFT, RIGHT = 0, 1
-SIDES = ("left", "right")
 MOTOR_JOINTS = ("hip-roll", "hip-yaw", "hip-pitch", "knee", "foot")
-SPRING_JOINTS = ("shin", "heel-spring")
-
-
-def load_cassie() -> mujoco.MjModel:
-    """Load the menagerie Cassie scene. Offline it needs ``MENAGERIE_ROOT``; when unset, a
-    ``shared/menagerie`` folder beside the checkout is used if there is one."""
-    if not os.environ.get("MENAGERIE_ROOT"):
-        shared = Path(__file__).resolve().parents[3] / "shared" / "menagerie"
-        if shared.is_dir():
-            os.environ["MENAGERIE_ROOT"] = str(shared)
-    import mujoco_menagerie
-
-    return mujoco_menagerie.load("agility_cassie")
+#: (the one loader of the model: runtime.robot)
+load_cassie = load_model
 
 
 class CassieModel:

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from runtime.cassie_packets import JOINT_NAMES, MOTOR_NAMES
+from runtime.robot import SIDES, SPRING_JOINTS, load_model
 
 from .kernels import (
     _assemble,
@@ -24,17 +25,6 @@ from .kernels import (
     _rod_velocities,
     _solve_rods,
 )
-
-SIDES = ("left", "right")
-#: the spring joints whose deflection measures the load on each leg (Cassie's leaf springs)
-SPRING_JOINTS = ("shin", "heel-spring")
-
-
-def load_model() -> mujoco.MjModel:
-    """Cassie from MuJoCo Menagerie (offline: set ``MENAGERIE_ROOT``)."""
-    import mujoco_menagerie
-
-    return mujoco_menagerie.load("agility_cassie")
 
 
 def _quat_to_mat(quat: np.ndarray) -> np.ndarray:
