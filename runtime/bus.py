@@ -36,13 +36,19 @@ import lcm
 
 from runtime.errors import BusError, MulticastRouteError
 from runtime.port_buffer import Policy, PortBuffer, worth_logging
-from runtime.route import FIX_HINT, check_multicast_route, has_multicast_route, multicast_group
+from runtime.route import (
+    DEFAULT_URL,
+    FIX_HINT,
+    check_multicast_route,
+    has_multicast_route,
+    multicast_group,
+)
 from runtime.udpm import UdpmReceiver
 
 log = logging.getLogger(__name__)
 
 
-DEFAULT_URL = "udpm://239.255.76.67:7667"
+
 #: the domain shared by every host: channels that cross between them
 NETWORK = "network"
 

@@ -29,6 +29,7 @@ from runtime.config_types import (
     RestartPolicy,
 )
 from runtime.errors import ConfigError
+from runtime.route import DEFAULT_URL
 
 __all__ = ["HW_CONFIG_DIR", "ConfigError", "find_profile", "load_profile", "load_yaml"]
 
@@ -391,7 +392,7 @@ def load_profile(path: str | Path) -> Profile:
         raise ck.fail("rtf", f"a real-time factor of {rtf:g} needs mode: realtime",
                       allowed="1.0 in lockstep")
     url = os.environ.get("CASSIE_LCM_URL") or (
-        lcm_url[0] if lcm_url else "udpm://239.255.76.67:7667"
+        lcm_url[0] if lcm_url else DEFAULT_URL
     )
     base_url = url
     if (n := instance()) and url.startswith("udpm://"):

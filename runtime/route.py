@@ -5,6 +5,10 @@ from __future__ import annotations
 import ipaddress
 from urllib.parse import urlparse
 
+#: the stack's LCM multicast group and network URL when hw_config names none (written once)
+DEFAULT_GROUP = "239.255.76.67"
+DEFAULT_URL = f"udpm://{DEFAULT_GROUP}:7667"
+
 FIX_HINT = (
     "LCM needs a route for UDP multicast. This machine has none (no default route and no "
     "224.0.0.0/4 route). On a single machine, add one over loopback:\n"
@@ -19,7 +23,7 @@ def multicast_group(url: str) -> tuple[str, int]:
     parsed = urlparse(url)
     if parsed.scheme != "udpm":
         raise ValueError(f"not an udpm:// LCM URL: {url!r}")
-    host = parsed.hostname or "239.255.76.67"
+    host = parsed.hostname or DEFAULT_GROUP
     port = parsed.port or 7667
     return host, port
 
@@ -43,7 +47,7 @@ def _routes() -> list[tuple[int, int]]:
     return out
 
 
-def has_multicast_route(group: str = "239.255.76.67") -> bool:
+def has_multicast_route(group: str = DEFAULT_GROUP) -> bool:
     """True when some IPv4 route covers ``group`` (a default route counts)."""
     addr = int(ipaddress.IPv4Address(group))
     return any((addr & mask) == (dest & mask) for dest, mask in _routes())

@@ -16,6 +16,7 @@ from runtime.bus import Bus
 from runtime.config import load_profile
 from runtime.config_types import Profile
 from runtime.errors import ConfigError
+from runtime.route import DEFAULT_URL
 
 
 def _profile(name: str | None) -> Profile | None:
@@ -47,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     prof = _profile(args.profile)
     url = os.environ.get("CASSIE_LCM_URL") or (
-        prof.lcm_url if prof else "udpm://239.255.76.67:7667"
+        prof.lcm_url if prof else DEFAULT_URL
     )
     channel = prof.channels["command"].name if prof and "command" in prof.channels else "COMMAND"
     bus = Bus(url, source="operator")
