@@ -122,10 +122,10 @@ class DeputyLink:
         try:
             msg = deputy_status_t.decode(data)
         except Exception as exc:
-            self.sup._refuse("DEPUTY_STATUS", f"malformed ({type(exc).__name__})")
+            self.sup.refuse("DEPUTY_STATUS", f"malformed ({type(exc).__name__})")
             return
         if not message_signed(data, self.key):
-            self.sup._refuse("DEPUTY_STATUS", f"from host {msg.host!r} without the deputies' "
+            self.sup.refuse("DEPUTY_STATUS", f"from host {msg.host!r} without the deputies' "
                              "key (another key file, or spoofed)")
             return
         if msg.host not in self.hosts or msg.launch != self.launch:
@@ -191,7 +191,7 @@ class DeputyLink:
         within ``timeout_s``; else a line per host saying what to do, and False."""
         out.write(f"waiting for the deputies on {', '.join(self.hosts)}\n")
         deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline and not self.sup._stop_requested:
+        while time.monotonic() < deadline and not self.sup.stop_requested:
             self.send()
             self.sup.bus.poll_every(0.05)
             if self.errors:
@@ -365,7 +365,7 @@ class Deputy:
                               live_table=False, check_first=False, hosts=(self.host,),
                               secrets=(token, timing))
         self.sup.state = "running"
-        self.sup._make_succession_locks()
+        self.sup.make_succession_locks()
         if profile.mode == "lockstep":  # (as the supervisor: below every loop, above CFS)
             rt_priority(1)
         self.say(f"serving launch {msg.launch} of profile {profile.name}: "
@@ -375,7 +375,7 @@ class Deputy:
     def _end_launch(self) -> None:
         if self.sup is not None:
             self.sup.state = "stopping"
-            self.sup._shutdown()
+            self.sup.shutdown()
             self.sup.bus.close()
             normal_priority()
             self.say(f"launch {self.launch} over: every process on this host stopped")
@@ -393,14 +393,14 @@ class Deputy:
             run, run_id = self._wanted.get(name, (False, 0))
             if run and run_id != child.run_id:
                 if child.popen is not None:  # a new run id while it runs: a restart
-                    sup._stop_child(child)
+                    sup.stop_child(child)
                     child.restarts += 1
                 child.run_id = run_id
                 child.restart_times.clear()
-                sup._start_child(child)
+                sup.start_child(child)
                 self._changed = True
             elif not run and (child.popen is not None or child.state == "backoff"):
-                sup._stop_child(child)
+                sup.stop_child(child)
                 child.state = "stopped"
                 self._changed = True
 
@@ -436,7 +436,7 @@ class Deputy:
             while not self._stop:
                 sup = self.sup
                 if sup is not None:
-                    sup._wait(0.05)
+                    sup.wait(0.05)
                 else:
                     time.sleep(0.05)
                 self.bus.handle_pending()
@@ -445,10 +445,10 @@ class Deputy:
                 if sup is not None:
                     self._apply()
                     before = {n: (c.state, c.pid) for n, c in sup.children.items()}
-                    sup._supervise(now)
-                    sup._note_states()
-                    if now - sup._last_sample >= 1.0:
-                        sup._sample_resources(now)
+                    sup.supervise(now)
+                    sup.note_states()
+                    if now - sup.resources.last_sample >= 1.0:
+                        sup.sample_resources(now)
                     if before != {n: (c.state, c.pid) for n, c in sup.children.items()}:
                         self._changed = True
                     if now - self._last_orders > ORPHAN_S:

@@ -17,10 +17,12 @@
 * SIGINT/SIGTERM (or ``--duration``) shuts down in reverse order, escalating
   SIGINT -> SIGTERM -> SIGKILL on each process group, so no orphan is left behind.
 * Status: a live table on the terminal, and the full state on LCM at 1 Hz, procman-style:
-  per process its state, CPU (psutil, over one-second windows), memory, loop rate, deadline
+  per process its state, CPU (over one-second windows), memory, loop rate, deadline
   misses, scheduling and the node's own status line (the controller's mode, the robot's
   distance walked); a ``--duration`` run fails when a required process failed or reported a
-  fault (a controller in safe mode, a robot that fell).
+  fault (a controller in safe mode, a robot that fell). The message, the table and the
+  summary are built in ``runtime.supervisor_status``, the CPU and memory figures sampled in
+  ``runtime.supervisor_resources``; this module keeps the processes and the main loop.
 * ``--log``: every LCM domain into ``LOG_DIR/lcm.log`` (``cassie log``: batched reads with
   kernel arrival times, so recording wakes no control loop's CPU per message).
 """
@@ -45,18 +47,20 @@ from typing import IO
 
 import psutil
 
-from lcmtypes import loop_timing_t, process_status_t, supervisor_orders_t, supervisor_status_t
+from lcmtypes import loop_timing_t, supervisor_orders_t, supervisor_status_t
+from runtime import supervisor_status
 from runtime.bus import Bus
 from runtime.checkpoint import remove_checkpoints
 from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
 from runtime.pairing import TIMING_KEY_ENV, TOKEN_ENV, message_signed
-from runtime.scheduling import describe, pin_to_supervisor_host, process_cpu_s, rt_priority
+from runtime.scheduling import pin_to_supervisor_host, rt_priority
 from runtime.succession import create_lock, lock_path
+from runtime.supervisor_resources import CpuShare, ResourceSampler
+from runtime.supervisor_status import FAILED_STATES
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-FAILED_STATES = ("failed", "crash_loop")
 #: what SUPERVISOR_ORDERS may ask of a process (or of "*": all)
 ORDERS = ("start", "stop", "restart")
 #: the standby's "set up" pipe (``cassie run --standby``): the file descriptor it writes
@@ -120,28 +124,6 @@ def new_log_dir(profile_name: str) -> Path:
     return logs_home() / f"{time.strftime('%Y%m%d-%H%M%S')}-{profile_name}"
 
 
-class CpuShare:
-    """A process tree's share of a core since the previous call, from the kernel's
-    nanosecond CPU clocks (:func:`process_cpu_s`): each pid counts what it ran in between, a
-    pid first seen counts from then on, a pid gone since counts nothing."""
-
-    def __init__(self) -> None:
-        self._cpu: dict[int, float] = {}
-        self._wall = time.monotonic()
-
-    def percent(self, pids: list[int]) -> float:
-        """Percent of one core the ``pids`` used together since the previous call."""
-        now, ran, seen = time.monotonic(), 0.0, {}
-        for pid in pids:
-            try:
-                seen[pid] = cpu = process_cpu_s(pid)
-            except OSError:
-                continue
-            ran += cpu - self._cpu.get(pid, cpu)
-        elapsed, self._wall, self._cpu = now - self._wall, now, seen
-        return 100.0 * ran / elapsed if elapsed > 0 else 0.0
-
-
 @dataclass(frozen=True)
 class Helper:
     """A supporting program the launch starts before the stack (the logger, the dashboard):
@@ -200,18 +182,12 @@ class Child:
     want: bool = False  # (remote) wanted running
     run_id: int = 0  # (remote, and a deputy's own record) a new one restarts it
     remote_pid: int = 0  # (remote) its pid, from its deputy's status
-    _share: CpuShare = field(default_factory=CpuShare)
+    #: its CPU clocks at the last sample (``runtime.supervisor_resources``)
+    cpu_share: CpuShare = field(default_factory=CpuShare)
 
     @property
     def pid(self) -> int:
         return self.popen.pid if self.popen is not None else self.remote_pid
-
-    def kids(self, ps: psutil.Process) -> list[psutil.Process]:
-        """The process's live descendants (a depth renderer, a viewer it started)."""
-        try:
-            return ps.children(recursive=True)
-        except psutil.Error:
-            return []
 
     def alive(self) -> bool:
         if self.remote:
@@ -285,17 +261,15 @@ class Supervisor:
         self.t0 = time.monotonic()
         #: TIMING messages and orders not taken (malformed, unknown sender or process), by kind
         self.refused: dict[str, int] = {}
-        self._refused_last: dict[str, str] = {}
-        self._stop_requested = False
+        self.refused_last: dict[str, str] = {}
+        self.stop_requested = False
         self._next_standby_at = 0.0
         self._noted: dict[str, str] = {}  # the state last printed of each process
         #: pid -> pidfd of each running child: the main loop wakes on a child's exit
         self._pidfds: dict[int, int] = {}
         self._status_seq = 0
-        self._me = psutil.Process()
-        self._my_share = CpuShare()
-        self.cpu_percent = 0.0
-        self._last_sample = 0.0
+        #: the CPU, memory and scheduling figures of the supervisor and its children
+        self.resources = ResourceSampler()
         self.bus.subscribe_raw(profile.timing_channel, self._on_timing)
         #: orders come to the supervisor only (a deputy takes the supervisor's orders)
         if hosts is None:
@@ -331,11 +305,11 @@ class Supervisor:
             self.order.append(name)
 
     # -- bus callbacks -------------------------------------------------------------------------
-    def _refuse(self, what: str, why: str) -> None:
+    def refuse(self, what: str, why: str) -> None:
         """Count a TIMING message or an order that was not taken, and say so (the 1st, 10th,
         100th, then every 1000th)."""
         n = self.refused[what] = self.refused.get(what, 0) + 1
-        self._refused_last[what] = why
+        self.refused_last[what] = why
         if n in (1, 10, 100) or n % 1000 == 0:
             self.out.write(f"ignored {what} #{n}: {why}\n")
 
@@ -343,17 +317,17 @@ class Supervisor:
         try:
             msg = loop_timing_t.decode(data)
         except Exception as exc:
-            self._refuse("TIMING", f"malformed ({type(exc).__name__})")
+            self.refuse("TIMING", f"malformed ({type(exc).__name__})")
             return
         child = self.children.get(msg.process)
         if child is None and self.host_only and msg.process in self.profile.processes:
             return  # a process of this launch on another host (a deputy hears them all)
         if child is None or msg.header.source != child.proc.name:
-            self._refuse("TIMING", f"from {msg.header.source!r} for process {msg.process!r}, "
+            self.refuse("TIMING", f"from {msg.header.source!r} for process {msg.process!r}, "
                          "not one this supervisor runs")
             return
         if not message_signed(data, self.timing_key):
-            self._refuse("TIMING", f"for process {msg.process!r} without this launch's "
+            self.refuse("TIMING", f"for process {msg.process!r} without this launch's "
                          "signature (another launch's, or spoofed)")
             return
         if child.popen is None and not (child.remote and child.want):
@@ -361,7 +335,7 @@ class Supervisor:
         if msg.header.send_mono_ns <= child.timing_mark:
             # signed, but not newer than one already taken from this copy of the process: a
             # recorded message sent again (the tag proves the launch, this its freshness)
-            self._refuse("TIMING", f"for process {msg.process!r} replayed (sent at "
+            self.refuse("TIMING", f"for process {msg.process!r} replayed (sent at "
                          f"{msg.header.send_mono_ns} ns, not after {child.timing_mark} ns)")
             return
         child.timing_mark = msg.header.send_mono_ns
@@ -380,13 +354,13 @@ class Supervisor:
         try:
             msg = supervisor_orders_t.decode(data)
         except Exception as exc:
-            self._refuse("order", f"malformed ({type(exc).__name__})")
+            self.refuse("order", f"malformed ({type(exc).__name__})")
             return
         if msg.order not in ORDERS:
-            self._refuse("order", f"unknown order {msg.order!r} (known: {', '.join(ORDERS)})")
+            self.refuse("order", f"unknown order {msg.order!r} (known: {', '.join(ORDERS)})")
             return
         if msg.process != "*" and msg.process not in self.children:
-            self._refuse("order", f"{msg.order} of unknown process {msg.process!r}")
+            self.refuse("order", f"{msg.order} of unknown process {msg.process!r}")
             return
         targets = list(self.children) if msg.process == "*" else [msg.process]
         for name in targets:
@@ -394,7 +368,7 @@ class Supervisor:
             if child is None:
                 continue
             if msg.order == "stop":
-                self._stop_child(child)
+                self.stop_child(child)
                 child.state = "stopped"
             elif msg.order == "start" and child.alive():
                 child.detail = "start ordered while running: ignored (order restart instead)"
@@ -402,10 +376,10 @@ class Supervisor:
                 self.deputies.start(child)
             elif msg.order in ("start", "restart"):
                 if msg.order == "restart" and child.popen is not None:
-                    self._stop_child(child)
+                    self.stop_child(child)
                     child.restarts += 1
                 child.restart_times.clear()
-                self._start_child(child)
+                self.start_child(child)
 
     # -- process control -----------------------------------------------------------------------
     def _command(self, child: Child) -> list[str]:
@@ -515,7 +489,7 @@ class Supervisor:
                 self._next_standby_at = now + STANDBY_SPACING_S
                 return
 
-    def _make_succession_locks(self) -> None:
+    def make_succession_locks(self) -> None:
         """One robust mutex per process with a standby (``runtime.succession``): the running
         copy holds it, the standby wakes the moment that copy dies, ~30-50 ms before its exit
         shows here."""
@@ -578,7 +552,8 @@ class Supervisor:
             pass
         _stop_group(sb, ((signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)))
 
-    def _start_child(self, child: Child) -> None:
+    def start_child(self, child: Child) -> None:
+        """Start ``child`` (its deputy does, for a remote one): log file, process, record."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         if child.remote and self.deputies is not None:
             self.deputies.start(child)
@@ -618,7 +593,7 @@ class Supervisor:
         except ProcessLookupError:
             pass
 
-    def _stop_child(self, child: Child) -> None:
+    def stop_child(self, child: Child) -> None:
         """SIGINT, then SIGTERM, then SIGKILL to the child's process group; its standby
         first, which would otherwise take over from a copy stopped on purpose."""
         self._end_standby(child)
@@ -639,7 +614,7 @@ class Supervisor:
 
     # -- the main loop -------------------------------------------------------------------------
     def request_stop(self, *_: object) -> None:
-        self._stop_requested = True
+        self.stop_requested = True
 
     def run(self) -> int:
         """Start everything, supervise until stopped, shut down; exit code 0 when all is well."""
@@ -654,7 +629,7 @@ class Supervisor:
             if not self._precheck():
                 self.state = "stopped"
                 return 2
-            self._make_succession_locks()
+            self.make_succession_locks()
             ok = self._start_all()
             self.state = "running" if ok else "stopping"
             # --duration counts the whole stack running: a fresh clone's start-up (a minute or
@@ -662,13 +637,13 @@ class Supervisor:
             t_running = time.monotonic()
             last_status = 0.0
             last_table = 0.0
-            while ok and not self._stop_requested:
-                self._wait(0.1)
+            while ok and not self.stop_requested:
+                self.wait(0.1)
                 now = time.monotonic()
-                self._supervise(now)
-                self._note_states()
+                self.supervise(now)
+                self.note_states()
                 if now - last_status >= 1.0:
-                    self._sample_resources(now)
+                    self.sample_resources(now)
                     self.publish_status()
                     last_status = now
                 if now - last_table >= (0.5 if self.live_table else 5.0):
@@ -684,7 +659,7 @@ class Supervisor:
                 os.close(fd)
             self._pidfds.clear()
             self.state = "stopping"
-            self._shutdown()
+            self.shutdown()
             self.state = "stopped"
             self.publish_status()
             for s, h in old.items():
@@ -692,7 +667,7 @@ class Supervisor:
         self._print_summary()
         return 1 if self._required_failed() or self._faults() or self._crashed() else 0
 
-    def _wait(self, period_s: float) -> None:
+    def wait(self, period_s: float) -> None:
         """Sleep ``period_s``, or less when a running child exits (its pidfd turns readable),
         then read the bus in one batch (no publisher ever wakes the supervisor). Measured: at
         a fixed 0.1 s, a killed estimator's standby took over ~100 ms after the kill, and a
@@ -713,19 +688,17 @@ class Supervisor:
         self.bus.handle_pending()
 
     def _required_failed(self) -> bool:
-        return any(
-            c.proc.required and (c.state in FAILED_STATES or c.ever_failed)
-            for c in self.children.values()
-        )
+        """Whether a required process failed: the launch ends, and the run fails."""
+        return bool(supervisor_status.required_failed(self.children.values()))
 
     def _crashed(self) -> list[str]:
-        """Required processes that crashed at least once (a restart kept the run going, but
-        the run's result is a failure: a controller that dies mid-walk is a bug)."""
-        return [c.proc.name for c in self.children.values() if c.proc.required and c.crashes]
+        """Required processes that crashed at least once (the run fails even if a restart
+        kept it going)."""
+        return supervisor_status.crashed(self.children.values())
 
     def _faults(self) -> list[str]:
         """Required processes that reported a fault (safe mode, a fall) at any time."""
-        return [c.proc.name for c in self.children.values() if c.proc.required and c.fault]
+        return supervisor_status.faulted(self.children.values())
 
     def _precheck(self) -> bool:
         """Build every process's node once (``cassie check``, in a child: the supervisor
@@ -767,16 +740,16 @@ class Supervisor:
         self._noted = {n: c.state for n, c in self.children.items()}
         for name in self.order:
             child = self.children[name]
-            self._start_child(child)
-            self._note_states()
+            self.start_child(child)
+            self.note_states()
             if not self._wait_ready(child):
-                self._note_states()
+                self.note_states()
                 return False
             self.out.write(f"{name}: ready in {child.ready_at - child.started_at:.1f} s\n")
             self._noted[name] = child.state
         return True
 
-    def _note_states(self) -> None:
+    def note_states(self) -> None:
         """One line per process whose state changed since the last call: the start-up and
         every crash, restart or take-over show as they happen, not at the next table."""
         for name, child in self.children.items():
@@ -792,11 +765,11 @@ class Supervisor:
         deadline = time.monotonic() + child.proc.ready_timeout_s
         last_status = 0.0
         waited_note = time.monotonic() + 10.0
-        while time.monotonic() < deadline and not self._stop_requested:
+        while time.monotonic() < deadline and not self.stop_requested:
             self.bus.poll_every(0.05)
             now = time.monotonic()
             if now - last_status >= 1.0:  # the status goes on while processes start
-                self._sample_resources(now)
+                self.sample_resources(now)
                 self.publish_status()
                 last_status = now
             if self.deputies is not None:
@@ -819,7 +792,7 @@ class Supervisor:
                 child.state = "ready"
                 child.ready_at = now
                 return True
-        if self._stop_requested:
+        if self.stop_requested:
             return False
         child.detail = (
             f"no TIMING heartbeat within {child.proc.ready_timeout_s:.1f} s (see its log "
@@ -829,7 +802,9 @@ class Supervisor:
         child.ever_failed = True
         return not child.proc.required
 
-    def _supervise(self, now: float) -> None:
+    def supervise(self, now: float) -> None:
+        """One pass over the records: readiness, exits (restart, standby, give up), backoffs
+        due, the standbys kept."""
         if self.deputies is not None:
             self.deputies.check(now)
         for child in self.children.values():
@@ -844,7 +819,7 @@ class Supervisor:
                 if code is not None:
                     self._on_exit(child, code, now)
             elif child.state == "backoff" and now >= child.next_start_at:
-                self._start_child(child)
+                self.start_child(child)
             if (child.state == "starting" and not child.heartbeat
                     and now - child.started_at > 0.5):
                 child.state, child.ready_at = "ready", now
@@ -888,48 +863,22 @@ class Supervisor:
         child.state = "backoff"
         child.detail = f"{how}; restart in {child.backoff_s:.1f} s"
 
-    def _sample_resources(self, now: float) -> None:
+    def sample_resources(self, now: float) -> None:
         """CPU share (nanosecond CPU clocks over the time since the previous sample: about a
         second, so the figure is a real average, not a 1 ms glimpse), CPU seconds, memory,
-        scheduling."""
-        self._last_sample = now
-        self.cpu_percent = self._my_share.percent([os.getpid()])
-        for child in self.children.values():
-            if child.remote:  # (its deputy measures it)
-                continue
-            if child.ps is None:
-                child.cpu_percent = child.rss_mb = 0.0
-                continue
-            try:
-                with child.ps.oneshot():
-                    t = child.ps.cpu_times()
-                    child.rss_mb = child.ps.memory_info().rss / 2**20
-                # the whole process tree: a depth renderer or a viewer the process started
-                cpu_s = t.user + t.system + t.children_user + t.children_system
-                kids = child.kids(child.ps)
-                for kid in kids:
-                    try:
-                        kt = kid.cpu_times()
-                        cpu_s += kt.user + kt.system
-                    except psutil.Error:
-                        pass
-                child.cpu_percent = child._share.percent([child.ps.pid] + [k.pid for k in kids])
-                child.cpu_s = cpu_s
-                child.priority = describe(child.pid)
-                aff = child.ps.cpu_affinity()
-                child.affinity = ("all" if len(aff) == (os.cpu_count() or len(aff))
-                                  else ",".join(map(str, aff)))
-            except psutil.Error:
-                child.cpu_percent = child.rss_mb = 0.0
+        scheduling (``runtime.supervisor_resources``)."""
+        self.resources.sample(self.children.values(), now)
 
-    def _shutdown(self) -> None:
+    def shutdown(self) -> None:
+        """Stop everything in reverse start order (spares first), close the logs, release
+        the deputies and remove the processes' saved states."""
         for child in self.children.values():  # the spares first: nothing may take over now
             self._end_standby(child)
         for name in reversed(self.order):
             child = self.children[name]
             if child.popen is not None or (child.remote and child.want):
                 was = child.state
-                self._stop_child(child)
+                self.stop_child(child)
                 child.state = "stopped" if was not in FAILED_STATES else was
             elif child.state in ("backoff", "starting", "ready"):
                 child.state = "stopped"
@@ -940,98 +889,29 @@ class Supervisor:
             self.deputies.release()
         remove_checkpoints(self.link_token)  # the processes' saved states (runtime.checkpoint)
 
-    # -- reporting -----------------------------------------------------------------------------
+    # -- reporting (runtime.supervisor_status) -------------------------------------------------
     def status_message(self) -> supervisor_status_t:
-        msg = supervisor_status_t()
-        msg.profile = self.profile.name
-        msg.state = self.state
-        msg.uptime_s = time.monotonic() - self.t0
-        msg.log_dir = str(self.log_dir)
-        now_ns = time.monotonic_ns()
-        for child in self.children.values():
-            p = process_status_t()
-            p.name = child.proc.name
-            p.host = child.proc.host
-            p.state = child.state
-            p.required = child.proc.required
-            p.pid = child.pid
-            p.restarts = child.restarts
-            p.crashes = child.crashes
-            p.exit_code = child.exit_code
-            p.cpu_percent = child.cpu_percent
-            p.cpu_s = child.cpu_s
-            p.rss_mb = child.rss_mb
-            p.loop_rate_hz = child.loop_rate_hz
-            p.deadline_misses = child.deadline_misses
-            p.last_message_age_s = (now_ns - child.last_msg_ns) / 1e9 if child.last_msg_ns else -1.0
-            p.health = child.health
-            p.status = child.status
-            p.affinity = child.affinity
-            p.priority = child.priority
-            p.detail = child.detail
-            if child.standby is not None and child.standby.poll() is None:
-                p.detail = (p.detail + "; " if p.detail else "") + (
-                    f"standby {child.standby.pid}"
-                    + ("" if child.standby_ready else " (setting up)"))
-            msg.processes.append(p)
-        me = process_status_t()  # the supervisor itself, so its cost is on record too
-        me.name, me.host, me.state, me.pid = "supervisor", "laptop", self.state, os.getpid()
-        me.cpu_percent = self.cpu_percent
-        t = self._me.cpu_times()
-        me.cpu_s = t.user + t.system
-        me.rss_mb = self._me.memory_info().rss / 2**20
-        me.last_message_age_s = -1.0
-        me.priority = describe(os.getpid())
-        msg.processes.append(me)
-        msg.num_processes = len(msg.processes)
-        return msg
+        """The launch's state as SUPERVISOR_STATUS carries it."""
+        return supervisor_status.status_message(self)
 
     def publish_status(self) -> None:
+        """SUPERVISOR_STATUS on the bus (a send error is the next second's to retry)."""
         try:
             self.bus.publish(self.profile.status_channel, self.status_message())
         except OSError:
             pass
 
     def table(self) -> str:
-        rows = [
-            f"{'process':<16}{'state':<11}{'pid':>7}{'rst':>4}{'cpu%':>7}{'MB':>7}"
-            f"{'Hz':>9}{'miss':>7}{'age s':>7}  {'sched':<8} status"
-        ]
-        now_ns = time.monotonic_ns()
-        total = self.cpu_percent
-        for c in self.children.values():
-            age = f"{(now_ns - c.last_msg_ns) / 1e9:.1f}" if c.last_msg_ns else "-"
-            text = c.detail or c.status.split(" | ")[0]  # the node's own first part
-            if c.fault and c.fault != c.status:
-                text = f"{text} (fault: {c.fault.split(' | ')[0]})"
-            if len(text) > 90:
-                text = text[:87] + "..."
-            rows.append(
-                f"{c.proc.name:<16}{c.state:<11}{c.pid or '-':>7}{c.restarts:>4}"
-                f"{c.cpu_percent:>7.1f}{c.rss_mb:>7.0f}{c.loop_rate_hz:>9.1f}"
-                f"{c.deadline_misses:>7}{age:>7}  {c.priority:<8} {text}"
-            )
-            total += c.cpu_percent
-        rows.append(f"{'supervisor':<16}{self.state:<11}{os.getpid():>7}{'':>4}"
-                    f"{self.cpu_percent:>7.1f}")
-        rows.append(f"{'total':<16}{'':<11}{'':>7}{'':>4}{total:>7.1f}  "
-                    f"(% of one core; this machine has {os.cpu_count()} cores)")
-        return "\n".join(rows)
+        """The status table's text."""
+        return supervisor_status.table(self)
 
     def robot_lines(self) -> list[str]:
-        """What the robot did, from the process that knows it (the sim's truth: distance,
-        falls) and the controller's mode, for the summary."""
-        lines = []
-        for c in self.children.values():
-            if "walked_m" in c.counters:
-                lines.append(f"robot: {c.status.split(' | ')[0]}  (the {c.proc.name}'s truth)")
-            elif "mode" in c.counters:
-                lines.append(f"controller: {c.status}  ({c.proc.name})")
-        return lines
+        """The summary's ``robot:`` and ``controller:`` lines."""
+        return supervisor_status.robot_lines(self.children.values())
 
     def _print_table(self, live: bool) -> None:
-        text = f"[{self.profile.name}] {self.state}, up {time.monotonic() - self.t0:.0f} s\n"
-        text += self.table() + "\n" + "".join(line + "\n" for line in self.robot_lines())
+        """The table on the terminal: redrawn in place when ``live``, else appended."""
+        text = supervisor_status.screen_text(self)
         if live:
             self.out.write("\x1b[H\x1b[J" + text)
         else:
@@ -1039,51 +919,6 @@ class Supervisor:
         self.out.flush()
 
     def _print_summary(self) -> None:
-        self.out.write(
-            f"\nsummary of profile {self.profile.name} after "
-            f"{time.monotonic() - self.t0:.1f} s (logs in {self.log_dir}):\n"
-        )
-        self.out.write(self.table() + "\n")
-        for line in self.robot_lines():
-            self.out.write(line + "\n")
-        bad = [
-            c.proc.name
-            for c in self.children.values()
-            if c.proc.required and (c.state in FAILED_STATES or c.ever_failed)
-        ]
-        for name in self._faults():
-            self.out.write(f"fault: {name}: {self.children[name].fault}\n")
-            if name not in bad:
-                bad.append(name)
-        for name in self._crashed():
-            c = self.children[name]
-            spare = f" ({c.takeovers} by its standby)" if c.takeovers else ""
-            self.out.write(f"crashed: {name}: {c.crashes} time(s), restarted {c.restarts} "
-                           f"time(s){spare}; last: {c.last_crash} (see its log)\n")
-            if name not in bad:
-                bad.append(name)
-        for c in self.children.values():
-            for line in _degraded_lines(c.counters):
-                self.out.write(f"degraded: {c.proc.name}: {line}\n")
-        for what, n in self.refused.items():
-            self.out.write(f"ignored: {n} {what} message(s), malformed or not from this stack; "
-                           f"last: {self._refused_last[what]}\n")
-        self.out.write("result: " + (f"FAILED ({', '.join(bad)})" if bad else "ok") + "\n")
+        """The end-of-launch summary on the terminal."""
+        self.out.write(supervisor_status.summary_text(self))
         self.out.flush()
-
-
-def _degraded_lines(counters: dict[str, float]) -> list[str]:
-    """What a process's counters say it rode through (safe-mode episodes that cleared, plan
-    fallbacks, rejected inputs): not a failure of the run, but a reader should see it."""
-    lines = []
-    if (n := int(counters.get("safe_entries", 0))) > 0:
-        lines.append(f"{n} safe-mode episode(s), {int(counters.get('safe_recoveries', 0))} "
-                     "cleared by themselves")
-    if (n := int(counters.get("plan_fallbacks", 0))) > 0:
-        lines.append(f"walked on its own steps {n} time(s) without MPFC plans, handed back "
-                     f"{int(counters.get('plan_handbacks', 0))}")
-    if (n := int(counters.get("inputs_rejected", 0))) > 0:
-        lines.append(f"{n} input message(s) rejected at the edge")
-    if (n := int(counters.get("tick_errors", 0))) > 0:
-        lines.append(f"{n} tick(s) raised and were caught (previous output kept)")
-    return lines

@@ -21,7 +21,8 @@ import numpy as np
 from processes.mpfc.footholds import Foothold, LocalFootholds, WorldFootholds, yaw_rotation
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.problem import MpfcModel, SolveInputs
-from processes.mpfc.search import ExactSearch, QpEngine
+from processes.mpfc.qp_engine import QpEngine
+from processes.mpfc.search import ExactSearch
 
 STANCES = ("left", "right")
 

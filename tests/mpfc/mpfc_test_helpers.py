@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 
 from processes.mpfc import MpfcParams, MpfcSolution, MpfcSolver
-from processes.mpfc.problem import build_miqp
+from processes.mpfc.footholds import LocalFootholds
+from processes.mpfc.problem import CondensedQp, build_miqp
+from processes.mpfc.qp_engine import SOLVED
+from processes.mpfc.search import ExactSearch, SearchResult
 from processes.mpfc.solver import Instance
 from runtime.params import check
 from tools.testbed.gurobi_reference import exhaustive_reference
@@ -49,3 +53,20 @@ def objective_matches(sol: MpfcSolution, ref: float, tol: float = 1e-6) -> bool:
     if not np.isfinite(ref):
         return sol.status == "infeasible"
     return sol.status == "optimal" and rel_err(sol.objective, ref) <= tol
+
+
+def exhaustive_search(search: ExactSearch, qp: CondensedQp, lf: LocalFootholds) -> SearchResult:
+    """Reference in the search's own condensed form: every assignment's leaf QP (M^N of them)
+    solved with the search's engine and the best kept, so no bound or pruning is trusted."""
+    n, m = search.engine.N, lf.count
+    if m == 0:
+        return SearchResult("infeasible", None, None, np.inf, 0, np.inf)
+    search._prepare(qp, lf)
+    best, best_a, best_z, nodes = np.inf, None, None, 0
+    for a in itertools.product(range(m), repeat=n):
+        res = search._solve_leaf(lf, a)
+        nodes += 1
+        if res.status == SOLVED and res.objective < best:
+            best, best_a, best_z = res.objective, a, res.z
+    status = "optimal" if best_a is not None else "infeasible"
+    return SearchResult(status, best_a, best_z, float(best), nodes, float(best))

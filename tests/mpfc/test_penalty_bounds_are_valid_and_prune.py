@@ -9,7 +9,7 @@ import numpy as np
 from mpfc_test_helpers import objective_matches, reference, solve, with_params
 
 from processes.mpfc import MpfcSolver
-from processes.mpfc.search import SOLVED
+from processes.mpfc.qp_engine import SOLVED
 from tools.testbed.mpfc_instances import random_instance
 
 SLOW_OK = 10_000.0

@@ -5,7 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from mpfc_test_helpers import objective_matches, reference, rel_err, solve, with_params
+from mpfc_test_helpers import (
+    exhaustive_search,
+    objective_matches,
+    reference,
+    rel_err,
+    solve,
+    with_params,
+)
 
 from processes.mpfc import MpfcSolver
 from processes.mpfc.problem import MpfcModel, build_miqp
@@ -117,7 +124,8 @@ def test_both_strategies_agree_on_a_stream_of_warm_solves(params) -> None:
     branch and bound agree on every solve of a walking-like stream, infeasible ones too."""
     import time
 
-    from processes.mpfc.search import ExactSearch, QpEngine
+    from processes.mpfc.qp_engine import QpEngine
+    from processes.mpfc.search import ExactSearch
 
     solver = MpfcSolver(with_params(params, time_limit_ms=SLOW_OK))
     bb = ExactSearch(QpEngine(params.horizon_steps), params.optimality_rel_tol,
@@ -159,3 +167,24 @@ def test_one_foothold_is_solved_as_its_one_qp(params) -> None:
             assert sol.nodes_explored == 1
             if sol.has_plan:
                 assert sol.foothold_indices == (0,) * solver.params.horizon_steps
+
+
+@pytest.mark.parametrize("horizon", [2, 3])
+def test_the_bounds_prune_no_leaf_better_than_the_answer(params, horizon) -> None:
+    """Against every leaf QP of the search's own condensed form (no bound trusted), the
+    search's answer is the best leaf, infeasible when every leaf is."""
+    from processes.mpfc.qp_engine import QpEngine
+    from processes.mpfc.search import ExactSearch
+
+    solver = MpfcSolver(with_params(params, horizon_steps=horizon, time_limit_ms=SLOW_OK))
+    every = ExactSearch(QpEngine(horizon), params.optimality_rel_tol)
+    rng = np.random.default_rng(40 + horizon)
+    for m in (2, 5, 9) if horizon == 2 else (2, 4):
+        inst = random_instance(rng, solver.model, m)
+        sol = solve(solver, inst)
+        qp = solver.model.condense(solver.last_inputs)
+        ref = exhaustive_search(every, qp, solver.last_local)
+        assert ref.nodes == solver.last_local.count ** horizon
+        assert ref.status == sol.status, (ref.status, sol.status)
+        if sol.status == "optimal":
+            assert rel_err(sol.objective, ref.objective) <= 1e-6, (sol.objective, ref.objective)

@@ -11,7 +11,7 @@ import time
 import pytest
 
 from runtime.scheduling import process_cpu_s
-from runtime.supervisor import CpuShare
+from runtime.supervisor_resources import CpuShare
 
 # 200 wakes a second, each spinning 0.1 ms: about 2 % of a core, under two clock ticks a second
 LIGHT_LOOP = """

@@ -266,7 +266,7 @@ def test_a_replayed_signed_timing_message_is_refused(lcm_url, tmp_path):
         sup._on_timing("TIMING", first)  # the recording of the first, sent again
         assert child.status == "second"
         assert sup.refused == {"TIMING": 1}
-        assert "replayed" in sup._refused_last["TIMING"]
+        assert "replayed" in sup.refused_last["TIMING"]
     finally:
         child.popen.kill()
         child.popen.wait()

@@ -1,0 +1,195 @@
+"""The piqp QP engine of the exact MPFC search: one leaf or relaxation QP of (15) at a time.
+
+piqp has no integers: the search (``processes.mpfc.search``) fixes a foothold per step and
+asks this engine for that leaf's QP, with the foothold rows rewritten in place and the
+soft CoM limits' slack variables added lazily (see `QpEngine`), which keeps most QPs at 6
+variables.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import piqp
+
+from processes.mpfc.problem import CondensedQp
+
+#: a QP's status (`QpResult.status`)
+SOLVED = "solved"
+INFEASIBLE = "infeasible"
+FAILED = "failed"
+
+
+@dataclass
+class QpResult:
+    """One QP: status ('solved', 'infeasible', 'failed'), objective of (15a), solution z."""
+
+    status: str
+    objective: float
+    z: np.ndarray | None
+
+
+class QpEngine:
+    """piqp dense solvers for the leaf and relaxation QPs of one solve.
+
+    Foothold rows are rewritten in place for each assignment. The soft CoM limits enter
+    lazily: each QP is solved with slack variables only for the state components in an active
+    set A (empty at first); if the solution violates a limit outside A, those components join
+    A and the QP is solved again. A QP whose dropped limits are all satisfied is exact,
+    because dropping a soft limit only lowers the objective. A persists for the whole solve,
+    and one piqp solver is kept per size of A so that dimensions never change under it.
+    """
+
+    def __init__(self, n_steps: int, eps_abs: float = 1e-9, eps_rel: float = 1e-10) -> None:
+        self.N = n_steps
+        self.nz = 2 + 2 * n_steps
+        self.ns = 4 * (n_steps + 1)
+        self.eps_abs = eps_abs
+        self.eps_rel = eps_rel
+        self.K = 0
+        self.qp: CondensedQp | None = None
+        self.optimizer_s = 0.0
+        self.solves = 0
+        self.retries = 0
+        self._solvers: dict[int, piqp.DenseSolver] = {}
+        self.active = np.zeros(0, dtype=int)
+        self._form_fresh = True
+        #: the first QP of this load solved with no soft limit at all (set by `solve`): the
+        #: minimum of (15a) without the soft-limit penalty, for the search's penalty bounds
+        self.unpenalised: QpResult | None = None
+
+    # -- per solve ------------------------------------------------------------------------
+    def load(self, qp: CondensedQp, k_rows: int) -> None:
+        """Take this solve's QP data; foothold slots hold `k_rows` rows per step."""
+        k_rows = max(4, k_rows)
+        if k_rows > self.K:
+            self.K = k_rows + (-k_rows) % 4
+            n = self.N
+            rows = n + n * self.K
+            self.Gs = np.zeros((rows, self.nz))
+            self.hs = np.ones(rows)
+            self._solvers.clear()
+        self.qp = qp
+        n, k = self.N, self.K
+        self.Gs[n: n + n * k] = 0.0
+        self.hs[n: n + n * k] = 1.0
+        self.Gs[:n] = qp.Gx
+        self.hs[:n] = qp.hx
+        self._set_active(np.zeros(0, dtype=int))
+        self.unpenalised = None
+
+    def _set_active(self, active: np.ndarray) -> None:
+        """Build the QP form with slacks for the soft-limit components in `active`."""
+        qp = self.qp
+        assert qp is not None
+        self.active = active
+        na, nz, rows_s = len(active), self.nz, self.Gs.shape[0]
+        nv = nz + na
+        self.P = np.zeros((nv, nv), order="F")
+        self.P[:nz, :nz] = qp.P
+        self.P[nz:, nz:] = 2.0 * qp.w_soft * np.eye(na)  # w_soft * s's
+        self.c = np.zeros(nv)
+        self.c[:nz] = qp.q
+        self.G = np.zeros((rows_s + 2 * na, nv), order="F")
+        self.h = np.ones(rows_s + 2 * na)
+        cs = qp.Cs[active]
+        self.G[rows_s: rows_s + na, :nz] = cs  # Cs z - s <= lim - cs
+        self.G[rows_s + na:, :nz] = -cs  # -Cs z - s <= lim + cs
+        self.G[rows_s:, nz:] = np.vstack([-np.eye(na), -np.eye(na)])
+        self.h[rows_s: rows_s + na] = qp.lim[active] - qp.cs[active]
+        self.h[rows_s + na:] = qp.lim[active] + qp.cs[active]
+        self.x_l = np.concatenate([qp.z_lo, np.zeros(na)])
+        self.x_u = np.concatenate([qp.z_hi, np.full(na, np.inf)])
+        self._form_fresh = True
+
+    def set_rows(self, step: int, f: np.ndarray | None, c: np.ndarray | None) -> None:
+        """Write step `step`'s (0-based) foothold rows F p <= c, padded to the solve's row count
+        with 0 <= 1 rows (None: only padding). Padding is finite so piqp strips nothing."""
+        r0 = self.N + step * self.K
+        cols = slice(2 + 2 * step, 4 + 2 * step)
+        if f is None:
+            self.Gs[r0: r0 + self.K, cols] = 0.0
+            self.hs[r0: r0 + self.K] = 1.0
+        else:
+            kk = f.shape[0]
+            self.Gs[r0: r0 + kk, cols] = f
+            self.hs[r0: r0 + kk] = c
+
+    # -- solving --------------------------------------------------------------------------
+    def solve(self) -> QpResult:
+        """Solve with the current rows, growing the active soft-limit set until no dropped
+        limit is violated; the objective includes every soft-limit penalty."""
+        qp = self.qp
+        assert qp is not None
+        while True:
+            res = self._run()
+            if res.status != SOLVED:
+                return res
+            z = res.z[: self.nz]
+            if self.unpenalised is None and len(self.active) == 0:
+                self.unpenalised = QpResult(SOLVED, res.objective + qp.const, z)
+            viol = qp.Cs @ z
+            viol += qp.cs
+            np.abs(viol, out=viol)
+            viol -= qp.lim
+            if len(self.active):
+                viol[self.active] = -1.0
+            over = viol > 1e-9
+            if not over.any():
+                # piqp's objective already holds w s'^2 for the active limits, which at the
+                # optimum is their penalty; the dropped ones contribute nothing
+                res.objective += qp.const
+                res.z = z
+                return res
+            self._set_active(np.union1d(self.active, np.flatnonzero(over)))
+
+    def _settings(self, s: piqp.DenseSolver, attempt: int) -> None:
+        """Tolerances of try ``attempt`` (0 first): each retry ten times looser, longer."""
+        st = s.settings
+        st.verbose = False
+        st.eps_abs = self.eps_abs * (10.0 ** attempt)
+        st.eps_rel = self.eps_rel * (10.0 ** attempt)
+        # the objective carries a large constant that cancels (||e - d||_W), so the duality
+        # gap must be tight for the objective to be right to ~1e-10 absolute
+        st.eps_duality_gap_abs = 1e-10 * (10.0 ** attempt)
+        st.eps_duality_gap_rel = 1e-10 * (10.0 ** attempt)
+        st.max_iter = 250 * (attempt + 1)
+        st.compute_timings = False
+
+    def _run(self) -> QpResult:
+        """One piqp solve; any status but solved/infeasible is retried with a fresh solver and
+        looser tolerances, and reported 'failed' (never 'infeasible') if it keeps failing."""
+        rows_s = self.Gs.shape[0]
+        self.G[:rows_s, : self.nz] = self.Gs
+        self.h[:rows_s] = self.hs
+        size = len(self.active)
+        for attempt in range(3):
+            solver = self._solvers.get(size) if attempt == 0 else None
+            if solver is None:
+                solver = piqp.DenseSolver()
+                self._settings(solver, attempt)
+                solver.setup(self.P, self.c, None, None, self.G, None, self.h, self.x_l,
+                             self.x_u)
+                if attempt == 0:  # retries use looser one-off solvers, never cached
+                    self._solvers[size] = solver
+            elif self._form_fresh:
+                solver.update(P=self.P, c=self.c, G=self.G, h_u=self.h, x_l=self.x_l,
+                              x_u=self.x_u)
+            else:
+                solver.update(G=self.G, h_u=self.h)
+            self._form_fresh = False
+            t0 = time.perf_counter()
+            status = solver.solve()
+            self.optimizer_s += time.perf_counter() - t0
+            self.solves += 1
+            if status == piqp.PIQP_SOLVED:
+                return QpResult(SOLVED, float(solver.result.info.primal_obj),
+                                np.array(solver.result.x))
+            if status == piqp.PIQP_PRIMAL_INFEASIBLE:
+                return QpResult(INFEASIBLE, np.inf, None)
+            self.retries += 1
+            self._solvers.pop(size, None)
+            self._form_fresh = True
+        return QpResult(FAILED, np.inf, None)
