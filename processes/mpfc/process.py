@@ -37,6 +37,7 @@ from lcmtypes import (
 )
 from processes.kinematics import AlipKinematics
 from processes.mpfc.footholds import Foothold
+from processes.mpfc.gait import GaitClock, MapHeight, ReachableFootholds
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver
 from runtime.config_types import ProcessConfig, Profile
@@ -72,26 +73,6 @@ class Params:
     height_lookup: bool = True
 
 
-def within_height(footholds: list[Foothold], z: float, max_dz: float) -> list[Foothold]:
-    """The footholds with some corner within ``max_dz`` of height ``z`` (all when max_dz <= 0).
-
-    A foothold's corners span [z_lo, z_hi] on its plane; it is kept when that interval comes
-    within ``max_dz`` of z. The objects are kept, not copied: the solver caches its padded
-    arrays by foothold identity, and the result only changes when the set does."""
-    if max_dz <= 0.0:
-        return footholds
-    out = []
-    for f in footholds:
-        v = f.vertices_xy
-        if len(v) == 0:
-            continue
-        beta, alpha = f.plane_xy
-        zs = alpha + v @ beta
-        if float(zs.min()) - max_dz <= z <= float(zs.max()) + max_dz:
-            out.append(f)
-    return out
-
-
 def footholds_from_msg(msg: foothold_set_t) -> list[Foothold]:
     """lcm foothold set -> solver footholds (malformed polygons are skipped, not raised)."""
     out = []
@@ -108,42 +89,6 @@ def footholds_from_msg(msg: foothold_set_t) -> list[Foothold]:
         except ValueError:
             continue
     return out
-
-
-class MapHeight:
-    """Height lookup on the newest elevation map (Section IX-A-3), nearest valid cell."""
-
-    def __init__(self) -> None:
-        self.grid: np.ndarray | None = None
-        self.origin = np.zeros(2)
-        self.res = 1.0
-
-    def set(self, msg: elevation_map_t) -> None:
-        names = list(msg.layer_names)
-        layer = next((n for n in ("elevation_inpainted", "elevation") if n in names), None)
-        if layer is None or msg.rows <= 0 or msg.cols <= 0:
-            return
-        cells = msg.rows * msg.cols
-        data = np.frombuffer(msg.data, dtype="<f4")
-        if data.size < cells * len(names):
-            return
-        i = names.index(layer)
-        self.grid = data[i * cells : (i + 1) * cells].reshape(msg.rows, msg.cols)
-        self.origin = np.asarray(msg.origin, dtype=float)
-        self.res = float(msg.resolution)
-
-    def lookup(self, xy: np.ndarray) -> float | None:
-        """Median of the 3 x 3 cells around ``xy`` (NaN cells ignored), or None off the map."""
-        if self.grid is None:
-            return None
-        j = round((xy[0] - self.origin[0]) / self.res)
-        i = round((xy[1] - self.origin[1]) / self.res)
-        rows, cols = self.grid.shape
-        if not (1 <= i < rows - 1 and 1 <= j < cols - 1):
-            return None
-        patch = self.grid[i - 1 : i + 2, j - 1 : j + 2]
-        good = patch[np.isfinite(patch)]
-        return float(np.median(good)) if good.size else None
 
 
 class MpfcNode(Node):
@@ -177,12 +122,10 @@ class MpfcNode(Node):
         self.vdes = np.array(default_velocity, dtype=float)
         self.height_lookup = height_lookup
         self.max_height_m = max_height_m
-        self._reachable: tuple[list[Foothold] | None, float, list[Foothold]] = (None, math.nan, [])
+        self._reachable = ReachableFootholds(max_height_m)
         self.map = MapHeight()
-        self.stance: int | None = None
-        self._air_foot: int | None = None  # started mid-step: the foot that was in the air
-        self.touchdown_s = 0.0
-        self.next_touchdown_s = 0.0
+        self.clock = GaitClock(params.t_s2s_s)
+        self.stance: int | None = None  # the clock's, as of the last tick
         self.stance_pos = np.zeros(3)
         self.plan: MpfcSolution | None = None
         self.last_status = "none"
@@ -228,25 +171,16 @@ class MpfcNode(Node):
         self.kin.update(q, v)
         yaw = self.kin.pelvis_yaw()
         p = self.params
-        if self.stance is None:
-            stance = self._first_stance(state)
-            if stance is None:
-                self.last_status = ("started with a foot in the air: waiting for its touchdown "
-                                    "to take the gait from the robot")
-                return
-            # at the first start: as if the left foot just touched down (the gait begins in
-            # double stance, where the OSC hands over); restarted mid-walk: the foot that did
-            self.stance = stance
-            self.touchdown_s = t
-            self.next_touchdown_s = self.touchdown_s + p.t_s2s_s
+        clock = self.clock
+        if clock.advance(t, state.in_contact):
             self.solver.reset()
-        elif t >= self.next_touchdown_s:  # touchdown of the swing foot: the stances swap
-            self.stance = 1 - self.stance
-            self.touchdown_s = self.next_touchdown_s
-            self.next_touchdown_s = self.touchdown_s + p.t_s2s_s
+        if clock.stance is None:
+            self.last_status = ("started with a foot in the air: waiting for its touchdown "
+                                "to take the gait from the robot")
+            return
+        self.stance = clock.stance
         self.stance_pos = self.kin.foot_points[self.stance].copy()
-        since = t - self.touchdown_s
-        t_star = max(p.t_s2s_s - since, 0.0)
+        t_star = clock.remaining(t)
         x = self.kin.alip_state(self.stance_pos, yaw)
         # The command is in the pelvis-yaw frame, which is the stance frame's orientation.
         sol = self.solver.solve(
@@ -260,42 +194,15 @@ class MpfcNode(Node):
         )
         self.solves += 1
         self.last_status = sol.status
-        if sol.has_plan:
-            if since >= p.t_ds_s:  # solutions are ignored during double stance (Fig. 4)
-                self.next_touchdown_s = t + sol.t_remaining_opt_s
+        if sol.has_plan:  # (its stance time is ignored during double stance, Fig. 4)
+            clock.plan_touchdown(t, sol.t_remaining_opt_s, p.t_ds_s)
             self.plan = sol
         else:
             self.failures += 1
         self._publish(ctx, state, sol, sol.status, yaw, x)
 
-    def _first_stance(self, state: robot_state_t) -> int | None:
-        """The stance the gait clock starts on, or None to wait for one.
-
-        The gait is timed from touchdowns (Fig. 4), and this loop keeps the clock. Started
-        with the robot standing (no foot in the air), it begins as if the left foot had just
-        touched down. Started while one foot is in the air -- a restart mid-walk, with the
-        OSC stepping on its own meanwhile (``processes.osc.fallback``) -- a clock started
-        there would put the stance on a swinging foot: measured live, a restarted MPFC then
-        planned 0.9 m steps and Cassie fell. So it waits for that foot's touchdown (both feet
-        in contact, from the estimator's contact flags) and starts the clock on it; the
-        OSC's own gait touches down on the same foot at the same moment, and hands back."""
-        down = [bool(c) for c in state.in_contact]
-        if sum(down) == 1:  # one foot in the air: remember which, and wait
-            self._air_foot = 0 if down[1] else 1
-            return None
-        if self._air_foot is None:  # the first state, with no foot in the air
-            return LEFT
-        return self._air_foot if all(down) else None
-
     def _reachable_footholds(self) -> list[Foothold]:
-        """The footholds within ``max_height_m`` of the stance foot (see the module docstring);
-        recomputed when the foothold set changes or the stance foot moves by 1 cm in z."""
-        z = float(self.stance_pos[2])
-        src, z_then, kept = self._reachable
-        if src is not self.footholds or not abs(z - z_then) < 0.01:
-            kept = within_height(self.footholds, z, self.max_height_m)
-            self._reachable = (self.footholds, z, kept)
-        return kept
+        return self._reachable.of(self.footholds, float(self.stance_pos[2]))
 
     # -- outputs -------------------------------------------------------------------------------
     def _publish(
@@ -316,7 +223,7 @@ class MpfcNode(Node):
             out.stance = LEFT if self.stance is None else self.stance
             out.solve_status = 3 if status == "error" else STATUS.get(status, 3)
         else:
-            in_ds = t - self.touchdown_s < self.params.t_ds_s
+            in_ds, start, end = self.clock.phase(t, self.params.t_ds_s)
             out.gait_state = (GAIT_DS if in_ds else GAIT_SS)[self.stance]
             out.stance = self.stance
             step = plan.footsteps[0].copy()
@@ -330,12 +237,9 @@ class MpfcNode(Node):
             out.next_footstep = [c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]]
             out.stance_foot_world = self.stance_pos.tolist()
             out.stance_yaw = yaw
-            # the start of the current gait phase: the touchdown in double stance, the swing
-            # foot's liftoff (T_ds after it, Fig. 4) in single stance
-            out.prev_switch_time_s = self.touchdown_s + (0.0 if in_ds else self.params.t_ds_s)
-            # its end: the liftoff in double stance, the planned touchdown in single stance
-            out.next_switch_time_s = (self.touchdown_s + self.params.t_ds_s if in_ds
-                                      else self.next_touchdown_s)
+            # the current gait phase: touchdown to liftoff (T_ds, Fig. 4) in double stance,
+            # liftoff to the planned touchdown in single stance
+            out.prev_switch_time_s, out.next_switch_time_s = start, end
             out.ankle_torque = 0.0 if in_ds else float(plan.ankle_torque_nm)
             out.num_footsteps = len(plan.footsteps)
             out.footsteps_world = plan.footsteps.tolist()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from processes.mpfc.footholds import Foothold
-from processes.mpfc.process import within_height
+from processes.mpfc.gait import within_height
 from runtime.errors import ConfigError
 from tests.mpfc.test_mpfc_process_gait import _proc
 

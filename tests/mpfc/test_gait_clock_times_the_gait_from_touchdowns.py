@@ -1,0 +1,37 @@
+"""processes.mpfc.gait.GaitClock, with no LCM: the gait timed from touchdowns (Fig. 4), a
+start with a foot in the air waiting for that foot's touchdown, and a solution's stance time
+taken only after double stance."""
+
+from __future__ import annotations
+
+import pytest
+
+from processes.mpfc.gait import LEFT, RIGHT, GaitClock
+
+T_SS, T_DS = 0.30, 0.10
+
+
+def test_a_standing_start_is_a_left_touchdown_and_the_stances_swap_on_schedule() -> None:
+    c = GaitClock(T_SS + T_DS)
+    assert c.advance(1.0, (True, True)) and c.stance == LEFT
+    assert c.remaining(1.1) == pytest.approx(0.3)
+    assert c.phase(1.05, T_DS) == (True, 1.0, pytest.approx(1.1))  # double stance
+    assert c.phase(1.2, T_DS) == (False, pytest.approx(1.1), pytest.approx(1.4))
+    assert not c.advance(1.4, (True, True)) and c.stance == RIGHT  # the planned touchdown
+    assert c.touchdown_s == pytest.approx(1.4) and c.remaining(1.9) == 0.0
+
+
+def test_a_start_mid_step_waits_for_the_air_foot_to_land_and_stands_on_it() -> None:
+    c = GaitClock(T_SS + T_DS)
+    assert not c.advance(0.0, (True, False)) and c.stance is None  # right foot swinging
+    assert not c.advance(0.1, (True, False)) and c.stance is None
+    assert c.advance(0.2, (True, True)) and c.stance == RIGHT and c.touchdown_s == 0.2
+
+
+def test_a_solution_moves_the_touchdown_only_after_double_stance() -> None:
+    c = GaitClock(T_SS + T_DS)
+    c.advance(0.0, (True, True))
+    c.plan_touchdown(0.05, 0.2, T_DS)  # in double stance: ignored
+    assert c.next_touchdown_s == pytest.approx(0.4)
+    c.plan_touchdown(0.15, 0.2, T_DS)
+    assert c.next_touchdown_s == pytest.approx(0.35)
