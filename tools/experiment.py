@@ -38,7 +38,7 @@ from runtime.config_types import Profile
 from runtime.harness import Binding, Harness
 from runtime.node import Node
 from runtime.scheduling import pin_to_supervisor_host
-from tools.benchmarks.common import print_table, write_json
+from tools.benchmarks.common import print_table, progress, write_json
 from tools.report import analyse, load_budgets, print_cpu, print_loops, print_realtime
 
 EXPERIMENTS = ("flat", "stairs", "beam", "stones")
@@ -335,6 +335,11 @@ def run_live_trial(
         t0 = time.perf_counter()
         next_cmd = t0
         cpu0 = time.process_time()
+        # the seconds walked since the holder let go, with an ETA, on a terminal (redrawn
+        # at most twice a second: this process's CPU is in the run's CPU table)
+        bar = progress(round(duration_s, 1), f"{name} seed {seed}, {mode}", unit="sim s",
+                       bar_format="{l_bar}{bar}| {n:.1f}/{total} sim s walked "
+                                  "[{elapsed}<{remaining}]")
         try:
             while sup.poll() is None and time.perf_counter() - t0 < wall_limit:
                 bus.poll_every(0.01)  # a watcher: batched reads
@@ -344,9 +349,13 @@ def run_live_trial(
                     utime = gt.header.utime if gt is not None else 0
                     bus.publish(cmd_channel, operator.command(utime, gt))
                     next_cmd = now + operator.period_s
-                if judge.fall_t is not None or judge.t_last - judge.walk_start_s >= duration_s:
+                walked = judge.t_last - judge.walk_start_s  # (-inf until the release)
+                # (an update of 0 too: it keeps the elapsed time moving while the stack starts)
+                bar.update(max(min(walked, duration_s) - bar.n, 0.0))
+                if judge.fall_t is not None or walked >= duration_s:
                     break
         finally:
+            bar.close()
             trial.wall_s = time.perf_counter() - t0
             own_cpu_s = time.process_time() - cpu0
             if sup.poll() is None:

@@ -28,7 +28,7 @@ import lcmtypes
 from runtime.config import HW_CONFIG_DIR, _channel, load_yaml
 from runtime.errors import ConfigError
 from runtime.timing import FOREIGN_CLOCK_NS
-from tools.benchmarks.common import write_json
+from tools.benchmarks.common import print_columns, write_json
 
 PCTS = (50.0, 99.0, 99.9)
 
@@ -438,55 +438,60 @@ def _link(by_proc: dict[str, tuple[list[Any], list[int]]]) -> dict[str, dict[str
     return out
 
 
-def print_cpu(cpu: dict[str, Any], out: Any = sys.stdout) -> None:
+def print_cpu(cpu: dict[str, Any], out: Any = None) -> None:
     """The CPU table: each process's share of a core beside its budget, and the total."""
     if not cpu or not cpu.get("processes"):
         return
-    w = out.write
+    out = sys.stdout if out is None else out
     win = cpu.get("window_s", float("nan"))
     when = f"; the {win:.1f} s all ran, start-up left out" if win == win else ""
-    w(f"\nCPU (share of one core = CPU seconds / wall seconds, all threads; per sim second"
-      f"{when})\n---\n")
-    w(f"{'process':<20}{'cpu s':>8}{'wall s':>8}{'share':>8}{'/sim s':>8}  budget\n")
+    out.write(f"\nCPU (share of one core = CPU seconds / wall seconds, all threads; per sim "
+              f"second{when})\n---\n")
+    rows = []
     for name, r in cpu["processes"].items():
         b = r["budget_share"]
         verdict = "" if b != b else ("ok" if r["within_budget"] else "OVER")
         per_sim = "" if r["cpu_per_sim_s"] != r["cpu_per_sim_s"] else f"{r['cpu_per_sim_s']:.3f}"
-        w(f"{name:<20}{r['cpu_s']:>8.2f}{r['wall_s']:>8.1f}{r['cpu_share']:>8.3f}{per_sim:>8}"
-          f"  {'' if b != b else f'<={b:g}'} {verdict}\n")
+        rows.append([name, f"{r['cpu_s']:.2f}", f"{r['wall_s']:.1f}", f"{r['cpu_share']:.3f}",
+                     per_sim, f"{'' if b != b else f'<={b:g}'} {verdict}".strip()])
     tb = cpu["total_budget"]
     verdict = "" if tb <= 0 else ("ok" if cpu["within_budget"] else
                                   f"OVER by {cpu['total_share'] - tb:.3f} core")
-    w(f"{'total':<20}{'':>8}{'':>8}{cpu['total_share']:>8.3f}{'':>8}  "
-      f"{f'<={tb:g}' if tb > 0 else ''} {verdict}\n")
+    rows.append(["total", "", "", f"{cpu['total_share']:.3f}", "",
+                 f"{f'<={tb:g}' if tb > 0 else ''} {verdict}".strip()])
+    print_columns(["process", "cpu s", "wall s", "share", "/sim s", "budget"], rows, out,
+                  justify="lrrrrl")
 
 
-def print_realtime(rt: dict[str, Any], out: Any = sys.stdout) -> None:
+def print_realtime(rt: dict[str, Any], out: Any = None) -> None:
     """Whether the sim kept wall-clock time and the chain answered every packet."""
     if not rt or not any(k in rt for k in ("rtf", "states_per_packet", "torques_per_step",
                                             "link")):
         return
-    w = out.write
-    w("\nReal time (from the sim's and the estimator's counters, in the CPU table's window)\n"
-      "---------\n")
+    out = sys.stdout if out is None else out
+    out.write("\nReal time (from the sim's and the estimator's counters, in the CPU table's "
+              "window)\n---------\n")
     names = {"rtf": "sim real-time factor", "states_per_packet": "states per sim packet",
              "torques_per_step": "torques per sim step"}
+    rows = []
     for key, label in names.items():
         if key not in rt:
             continue
         lim = rt["budget"].get(key)
         verdict = "" if lim is None else ("ok" if rt[key] >= lim else "UNDER")
-        w(f"{label:<28}{rt[key]:>8.4f}  {'' if lim is None else f'>={lim:g}'} {verdict}\n")
+        rows.append([label, f"{rt[key]:.4f}",
+                     f"{'' if lim is None else f'>={lim:g}'} {verdict}".strip()])
+    if rows:
+        print_columns(["check", "ratio", "budget"], rows, out, justify="lrl")
     links = rt.get("link") or {}
     if links:
-        w("\nUDP link (datagrams over the span both ends reported; lost = sent - received)\n"
-          "--------\n")
-        w(f"{'direction':<28}{'sent':>9}{'received':>10}{'lost':>8}{'lost %':>8}"
-          f"{'seq gaps':>10}{'rejected':>10}\n")
-        for name, r in links.items():
-            w(f"{name:<28}{r['sent']:>9.0f}{r['received']:>10.0f}{r['lost']:>8.0f}"
-              f"{100 * r['lost_ratio']:>8.2f}{r['seq_gaps']:>10.0f}"
-              f"{r.get('rejected', 0.0):>10.0f}\n")
+        out.write("\nUDP link (datagrams over the span both ends reported; lost = sent - "
+                  "received)\n--------\n")
+        print_columns(
+            ["direction", "sent", "received", "lost", "lost %", "seq gaps", "rejected"],
+            [[name, f"{r['sent']:.0f}", f"{r['received']:.0f}", f"{r['lost']:.0f}",
+              f"{100 * r['lost_ratio']:.2f}", f"{r['seq_gaps']:.0f}",
+              f"{r.get('rejected', 0.0):.0f}"] for name, r in links.items()], out)
 
 
 def _pcts(a: np.ndarray, prefix: str) -> dict[str, float]:
@@ -501,48 +506,47 @@ def _pcts(a: np.ndarray, prefix: str) -> dict[str, float]:
     }
 
 
-def print_loops(loops: dict[str, Any], out: Any = sys.stdout) -> None:
+def print_loops(loops: dict[str, Any], out: Any = None) -> None:
     """The loops table of the report: execution time, lateness and deadline misses."""
-    w = out.write
-    w("\nLoops (execution time; lateness; misses against the loop's deadline)\n-----\n")
-    w(
-        f"{'loop':<32}{'Hz':>8}{'p50':>8}{'p99':>8}{'p99.9':>8}{'max':>8}{'cpu p50':>8}"
-        f"{'late p99':>9}{'misses':>9}{'miss %':>8}  budget\n"
-    )
+    out = sys.stdout if out is None else out
+    out.write("\nLoops (execution time; lateness; misses against the loop's deadline)\n-----\n")
+    rows = []
     for name, r in loops.items():
         verdict = ("ok" if r["within_budget"] else "OVER") if r["budget"] else ""
-        w(
-            f"{name:<32}{r['rate_hz']:>8.1f}{r['exec_p50_ms']:>8.3f}{r['exec_p99_ms']:>8.3f}"
-            f"{r['exec_p999_ms']:>8.3f}{r['exec_max_ms']:>8.2f}{r['cpu_p50_ms']:>8.3f}"
-            f"{r['lateness_p99_ms']:>9.3f}{r['deadline_misses']:>9}{100 * r['miss_ratio']:>8.3f}"
-            f"  {r['budget']} {verdict}\n"
-        )
+        rows.append([name, f"{r['rate_hz']:.1f}", f"{r['exec_p50_ms']:.3f}",
+                     f"{r['exec_p99_ms']:.3f}", f"{r['exec_p999_ms']:.3f}",
+                     f"{r['exec_max_ms']:.2f}", f"{r['cpu_p50_ms']:.3f}",
+                     f"{r['lateness_p99_ms']:.3f}", str(r["deadline_misses"]),
+                     f"{100 * r['miss_ratio']:.3f}", f"{r['budget']} {verdict}".strip()])
+    print_columns(["loop", "Hz", "p50", "p99", "p99.9", "max", "cpu p50", "late p99", "misses",
+                   "miss %", "budget"], rows, out, justify="l" + "r" * 9 + "l")
 
 
-def print_report(rep: dict[str, Any], out: Any = sys.stdout) -> None:
-    w = out.write
-    w("\nChannels\n--------\n")
-    w(f"{'channel':<24}{'count':>9}{'rate Hz':>10}{'gap med ms':>12}{'gap max ms':>12}{'bad':>6}\n")
-    for ch, r in rep["channels"].items():
-        w(
-            f"{ch:<24}{r['count']:>9}{r['rate_hz']:>10.1f}{r['gap_median_ms']:>12.3f}"
-            f"{r['gap_max_ms']:>12.2f}{r['undecodable']:>6}\n"
-        )
+def print_report(rep: dict[str, Any], out: Any = None) -> None:
+    """Every table of the report: channels, loops, CPU, real time and hops."""
+    out = sys.stdout if out is None else out
+    out.write("\nChannels\n--------\n")
+    print_columns(
+        ["channel", "count", "rate Hz", "gap med ms", "gap max ms", "bad"],
+        [[ch, str(r["count"]), f"{r['rate_hz']:.1f}", f"{r['gap_median_ms']:.3f}",
+          f"{r['gap_max_ms']:.2f}", str(r["undecodable"])] for ch, r in rep["channels"].items()],
+        out)
     print_loops(rep["loops"], out)
     print_cpu(rep.get("cpu", {}), out)
     print_realtime(rep.get("realtime", {}), out)
-    w("\nHops (latency, ms, matched by header.utime)\n----\n")
-    w(f"{'hop':<34}{'n':>7}{'p50':>9}{'p99':>9}{'p99.9':>9}{'max':>10}  budget p99\n")
+    out.write("\nHops (latency, ms, matched by header.utime)\n----\n")
+    rows, notes = [], []
     for name, r in rep["hops"].items():
         verdict = "ok" if r["within_budget"] else ("no data" if not r["matched"] else "OVER")
-        w(
-            f"{name:<34}{r['matched']:>7} {r['latency_p50_ms']:>8.3f} {r['latency_p99_ms']:>8.3f}"
-            f" {r['latency_p999_ms']:>8.3f} {r['latency_max_ms']:>9.2f}  {r['budget_p99_ms']:g} "
-            f"{verdict}\n"
-        )
+        rows.append([name, str(r["matched"]), f"{r['latency_p50_ms']:.3f}",
+                     f"{r['latency_p99_ms']:.3f}", f"{r['latency_p999_ms']:.3f}",
+                     f"{r['latency_max_ms']:.2f}", f"{r['budget_p99_ms']:g} {verdict}"])
         if r.get("foreign_clock"):
-            w(f"{'':<34}{r['foreign_clock']:>7} pairs over 1 s apart left out (a replayed log, "
-              "or two hosts' clocks)\n")
+            notes.append(f"  {name}: {r['foreign_clock']} pairs over 1 s apart left out (a "
+                         "replayed log, or two hosts' clocks)\n")
+    print_columns(["hop", "n", "p50", "p99", "p99.9", "max", "budget p99"], rows, out,
+                  justify="lrrrrrl")
+    out.write("".join(notes))
 
 
 def flatten(rep: dict[str, Any]) -> dict[str, Any]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -61,15 +62,29 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     env = dict(os.environ, CLASSPATH=cp)
-    spies = [subprocess.Popen(cmd, env=env) for cmd in cmds.values()]
+    # each lcm-spy (a Python launcher and its JVM) in a process group of its own, ended as a
+    # whole: a SIGTERM to the launcher alone leaves the JVM and its window behind
+    spies = [subprocess.Popen(cmd, env=env, start_new_session=True) for cmd in cmds.values()]
     for d, u in urls.items():
         print(f"lcm-spy on {d} ({u})")
+    # a SIGTERM (kill, a script's cleanup) closes the windows too, as Ctrl-C does
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
         return max(s.wait() for s in spies)
     except KeyboardInterrupt:
         for s in spies:
-            s.terminate()
+            try:
+                os.killpg(s.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass  # (that window was closed already)
+        for s in spies:
+            s.wait()
         return 130
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    """A signal handler that stops the spies as Ctrl-C does."""
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":

@@ -106,3 +106,22 @@ def test_zero_delay_message_cycle_is_reported_not_hung():
     h = Harness([Binding(a, {"in": "B"}, {"out": "A"}), Binding(b, {"in": "A"}, {"out": "B"})])
     with pytest.raises(RuntimeError, match="no progress in sim time"):
         h.run_until(1000)
+
+
+def test_a_run_reports_its_sim_time_to_a_progress_callback_without_changing_the_result():
+    """A tool's progress bar gets the sim time every 0.1 s of it and at the end; the run is
+    the same as one without the callback."""
+    def run(progress):  # type: ignore[no-untyped-def]
+        ticker = Ticker(None)
+        ticker.period_s = 0.005
+        h = Harness([Binding(ticker, inputs={}, outputs={"out": "TICK"}),
+                     Binding(Echo(sleep_s=0.0), inputs={"in": "TICK"}, outputs={"out": "ECHO"})])
+        log: list[tuple[int, float]] = []
+        h.tap("ECHO", lambda t, m: log.append((t, m.vx)))
+        h.run_until(1_000_000, progress=progress)
+        h.close()
+        return log
+
+    seen: list[int] = []
+    assert run(seen.append) == run(None)
+    assert seen == [k * 100_000 for k in range(1, 11)] + [1_000_000]

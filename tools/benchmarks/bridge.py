@@ -160,7 +160,7 @@ def _bridge(tree: str | None, sink_port: int, seconds: float) -> int:
     for note in apply_scheduling(proc):
         if "failed" in note:
             print(note, file=sys.stderr)
-    node = importlib.import_module(proc.module).make_node(proc, profile)
+    node = importlib.import_module("runtime.builder").build_node(proc, profile)
     return LiveRunner(node, proc, profile).run(duration_s=seconds)
 
 

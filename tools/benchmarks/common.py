@@ -1,4 +1,5 @@
-"""Shared pieces of every benchmark: percentile summaries, a readable table, the flat JSON file.
+"""Shared pieces of every benchmark: percentile summaries, aligned tables, progress bars,
+the flat JSON file.
 
 Benchmarks print figures (median, p99, max, ratios); they never assert on time, because the
 machines are shared and noisy (tails vary 3-10x between runs).
@@ -6,6 +7,8 @@ machines are shared and noisy (tails vary 3-10x between runs).
 
 from __future__ import annotations
 
+import functools
+import io
 import json
 import os
 import platform
@@ -16,8 +19,12 @@ import sys
 import threading
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 #: the repository the benchmarks run from (the tree a ``--baseline`` is read out of)
 REPO = Path(__file__).resolve().parents[2]
@@ -116,17 +123,101 @@ def summarize(
     }
 
 
-def print_table(title: str, rows: Mapping[str, object] | Iterable[tuple[str, object]]) -> None:
-    """Print `rows` (name -> value) as an aligned two-column table under `title`."""
-    items = list(rows.items()) if isinstance(rows, Mapping) else list(rows)
-    width = max((len(str(k)) for k, _ in items), default=10)
-    print(f"\n{title}\n{'-' * len(title)}")
-    for key, value in items:
-        if isinstance(value, float):
-            text = f"{value:.4g}"
-        else:
-            text = str(value)
-        print(f"  {key!s:<{width}}  {text}")
+def _is_terminal(out: IO[str]) -> bool:
+    """Whether ``out`` is a terminal (a captured or redirected stream is not)."""
+    try:
+        return out.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def print_columns(columns: Sequence[str], rows: Iterable[Sequence[object]],
+                  out: IO[str] | None = None, justify: str | None = None,
+                  header: bool = True) -> None:
+    """Print ``rows`` under ``columns`` as an aligned table (rich); ``justify`` is one letter
+    per column, ``l`` or ``r`` (default: the first left, the others right); a None cell is
+    blank. Cells are printed as given, never read as rich markup (``[ms]`` stays ``[ms]``)."""
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+    from rich.text import Text
+
+    out = sys.stdout if out is None else out  # looked up now: a test's capture sees it
+    justify = justify or "l" + "r" * (len(columns) - 1)
+    tty = _is_terminal(out)
+    encoding = (getattr(out, "encoding", None) or "utf-8").lower()
+    # the header's underline as box-drawing characters, or dashes where they cannot be encoded
+    line = box.SIMPLE_HEAD if encoding.startswith("utf") else box.Box(
+        "    \n    \n -- \n    \n    \n    \n    \n    \n", ascii=True)
+    table = Table(box=line if header else None, show_header=header, show_edge=False,
+                  pad_edge=False, header_style="bold" if tty else "")
+    for name, j in zip(columns, justify, strict=True):
+        table.add_column(Text(name), justify="left" if j == "l" else "right")
+    for row in rows:
+        table.add_row(*(Text("" if c is None else str(c)) for c in row))
+    if tty:  # with its styles; never squeezed below its own width (rich would cut or fold
+        # cells to fit a narrow terminal): the terminal wraps a line instead, nothing is lost
+        console = Console(file=out, highlight=False)
+        natural = console.measure(table, options=console.options.update_width(10_000))
+        console.width = max(console.width, natural.maximum)
+        console.print(table)
+        return
+    # a log, a pipe or a test: one line per row however wide, no styles, no trailing blanks
+    console = Console(file=io.StringIO(), width=10_000, highlight=False, color_system=None)
+    with console.capture() as cap:
+        console.print(table)
+    out.write("".join(ln.rstrip() + "\n" for ln in cap.get().splitlines()))
+
+
+def print_table(title: str, rows: Mapping[str, object] | Iterable[tuple[object, ...]],
+                columns: Sequence[str] | None = None, out: IO[str] | None = None,
+                justify: str | None = None) -> None:
+    """Print ``rows`` (name -> value, or tuples of cells) as an aligned table under
+    ``title``; with ``columns``, a header row of those names (one per cell); ``justify`` as
+    ``print_columns``'s (default: every column left)."""
+    items = list(rows.items()) if isinstance(rows, Mapping) else [tuple(r) for r in rows]
+    out = sys.stdout if out is None else out
+    out.write(f"\n{title}\n{'-' * len(title)}\n")
+
+    def cell(value: object) -> str:
+        return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+    width = max((len(r) for r in items), default=2)
+    cells = [[cell(c) for c in r] + [""] * (width - len(r)) for r in items]
+    # the names left, the values left too (a value is often a sentence: "0.1 -> 0.2 (2x)")
+    print_columns(columns or [""] * width, cells, out, justify=justify or "l" * width,
+                  header=columns is not None)
+
+
+@functools.cache
+def _bar_class() -> type[tqdm]:
+    """tqdm without its monitor thread: a thread that wakes every 10 s in a benchmark's
+    process is one more thing to preempt what is being timed."""
+    from tqdm import tqdm
+
+    class Bar(tqdm):  # type: ignore[type-arg]
+        monitor_interval = 0
+
+    return Bar
+
+
+def progress(total: float | None, desc: str, unit: str = "it", quiet: bool = False,
+             **kwargs: Any) -> tqdm:
+    """A progress bar with an ETA on stderr for a long loop of a benchmark or tool: drawn
+    only on a terminal (off when stderr is piped or captured, or ``quiet``) and redrawn at
+    most twice a second, so its cost stays out of what the loop times; gone when closed."""
+    return _bar_class()(total=total, desc=desc, unit=unit, file=sys.stderr,
+                        disable=True if quiet else None, mininterval=0.5, leave=False,
+                        dynamic_ncols=True, **kwargs)
+
+
+def say(line: str, file: IO[str] | None = None) -> None:
+    """Print ``line`` (stdout by default) above any progress bar, not through it."""
+    from tqdm import tqdm
+
+    out = sys.stdout if file is None else file
+    tqdm.write(line, file=out)
+    out.flush()
 
 
 def write_json(

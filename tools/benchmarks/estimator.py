@@ -1,7 +1,7 @@
 """``cassie bench estimator``: the state estimator's tick time and its error against ground truth.
 
 1. A scripted run of the real MuJoCo sim in the deterministic harness (sim -> estimator ->
-   scripted joint PD -> torque bridge -> sim; ``processes.state_estimator.scripted``), with the
+   scripted joint PD -> torque bridge -> sim; ``tools.testbed.estimator_motions``), with the
    sim's ground truth at every state: velocity RMSE, position error and drift per metre of
    pelvis path, contact agreement.
 2. The run's raw robot-output packets replayed through a fresh estimator node, one tick per
@@ -37,6 +37,7 @@ from tools.benchmarks.common import (
     free_udp_port,
     git_archive,
     print_table,
+    progress,
     summarize,
     write_json,
 )
@@ -60,17 +61,20 @@ class _EncodingContext:
         self.bytes_out += len(msg.encode())
 
 
-def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = None,
+               desc: str = "timed ticks") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Tick a fresh estimator node on every packet; returns the node tick's wall time, its
     thread CPU time (the work itself, without preemption), and the update-only wall time, ms.
-    ``node_cls``: the node class to time (default: this tree's ``StateEstimatorNode``)."""
+    ``node_cls``: the node class to time (default: this tree's ``StateEstimatorNode``);
+    ``desc`` names the progress bar."""
     if node_cls is None:
         from processes.state_estimator.process import StateEstimatorNode as node_cls
 
     node_ms: list[float] = []
     cpu_ms: list[float] = []
     upd_ms: list[float] = []
+    # each packet twice: the node's tick, then the estimator's update alone
+    bar = progress(2 * repeats * len(packets), desc, unit="tick")
     for _ in range(repeats):
         node = node_cls()
         ctx, inbox = _EncodingContext(), DirectInbox("robot_output")
@@ -89,6 +93,7 @@ def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = N
                 t1 = time.perf_counter_ns()
                 node_ms.append((t1 - t0) / 1e6)
                 cpu_ms.append((time.thread_time_ns() - c0) / 1e6)
+                bar.update(1)  # after both clocks are read: outside the timed tick
             # the estimator alone (no packet decode, no messages), on the decoded packets,
             # with the ALIP part on every network_every-th packet as in the node
             est2 = type(est)(node.params, est.kin.m)
@@ -98,9 +103,11 @@ def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = N
                 t0 = time.perf_counter_ns()
                 est2.update(pkt, alip=i % every == 0)
                 upd_ms.append((time.perf_counter_ns() - t0) / 1e6)
+                bar.update(1)
         finally:
             gc.enable()
             gc.unfreeze()
+    bar.close()
     return np.array(node_ms), np.array(cpu_ms), np.array(upd_ms)
 
 
@@ -154,9 +161,11 @@ def side_by_side(packets: list[bytes], baseline: type, repeats: int = 3) -> dict
     from processes.state_estimator.process import StateEstimatorNode
 
     runs: dict[str, list[np.ndarray]] = {"baseline": [], "this": []}
-    for _ in range(repeats):
-        runs["baseline"].append(time_ticks(packets, node_cls=baseline)[0])
-        runs["this"].append(time_ticks(packets, node_cls=StateEstimatorNode)[0])
+    for k in range(repeats):
+        runs["baseline"].append(time_ticks(packets, node_cls=baseline,
+                                           desc=f"baseline {k + 1}/{repeats}")[0])
+        runs["this"].append(time_ticks(packets, node_cls=StateEstimatorNode,
+                                       desc=f"this tree {k + 1}/{repeats}")[0])
     out: dict[str, float] = {"side_by_side_repeats": repeats}
     for name, parts in runs.items():
         a = np.concatenate(parts)
@@ -213,7 +222,7 @@ def _child_estimator(name: str, port: int, root: str) -> int:
         module = importlib.import_module("baseline_state_estimator.process")
     else:
         module = importlib.import_module("processes.state_estimator.process")
-    node = module.make_node(proc, profile)
+    node = importlib.import_module("runtime.builder").build_node(proc, profile, module)
     return LiveRunner(node, proc, profile).run()
 
 
@@ -403,11 +412,19 @@ def live_run(packets: list[bytes], variants: dict[str, Path | None], seconds: fl
                     pipe=True)
         procs = {k: psutil.Process(p.pid) for k, p in kids.items() if k != "replayer"}
         cpu_samples: list[tuple[int, dict[str, float]]] = []
+        # the replayer's schedule in wall seconds: this process (on CPU 0, off the
+        # estimators') already wakes every 0.1 s here; a redraw at most every 0.5 s
+        bar = progress(round(len(order) * (seconds + gap_s), 1), "live segments", unit="s",
+                       bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s [{elapsed}<{remaining}]")
+        t_last = time.monotonic()
         while rep.poll() is None:
             bus.poll_every(0.1)
             collect()
             t = time.monotonic_ns()
             cpu_samples.append((t, {k: sum(pr.cpu_times()[:2]) for k, pr in procs.items()}))
+            bar.update(t / 1e9 - t_last)
+            t_last = t / 1e9
+        bar.close()
         if rep.returncode != 0:
             raise RuntimeError(f"live bench: the replayer failed; logs in {work}")
         assert rep.stdout is not None
@@ -581,9 +598,8 @@ def print_live(live: dict[str, Any], variants: list[str], title: str) -> None:
             else:
                 cells.append(f"{f['packets_received']:.0f} / {f['packets_rejected']:.0f} / "
                              f"{f['packets_lost']:.0f}")
-        table.append((label, "   ".join(f"{c:>16}" for c in cells)))
-    table.insert(0, ("", "   ".join(f"{v:>16}" for v in variants)))
-    print_table(title, table)
+        table.append((label, *cells))
+    print_table(title, table, columns=["", *variants], justify="l" + "r" * len(variants))
 
 
 def equivalence(packets: list[bytes], baseline: type) -> dict[str, float]:
@@ -601,12 +617,14 @@ def equivalence(packets: list[bytes], baseline: type) -> dict[str, float]:
             self.sent.append((role, msg.encode()))
 
     runs = []
-    for cls in (baseline, StateEstimatorNode):
+    for name, cls in (("baseline", baseline), ("this tree", StateEstimatorNode)):
         node, ctx, inbox = cls(), _Capture(), DirectInbox("robot_output")
         node.setup(ctx)
-        for raw in packets:
-            inbox.messages["robot_output"] = raw
-            node.tick(ctx, inbox)
+        with progress(len(packets), f"equivalence: {name}", unit="tick") as bar:  # untimed
+            for raw in packets:
+                inbox.messages["robot_output"] = raw
+                node.tick(ctx, inbox)
+                bar.update(1)
         runs.append(ctx.sent)
     a, b = runs
     out = {"equiv_messages": float(len(b)), "equiv_roles_differ": float(
@@ -656,7 +674,7 @@ def machine_load() -> dict[str, float]:
 
 def accuracy(rec: Any) -> dict[str, float]:
     """Error figures of a recorded run against the sim's ground truth."""
-    from processes.state_estimator.scripted import errors
+    from tools.testbed.estimator_motions import errors
 
     e = errors(rec)
     vel, pos = e["vel"], e["pos"]
@@ -700,7 +718,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--live-repeats", type=int, default=3,
                     help="live segments per estimator, interleaved (default 3)")
     args = ap.parse_args(argv)
-    from processes.state_estimator.scripted import MOTIONS, run_loop
+    from tools.testbed.estimator_motions import MOTIONS, run_loop
 
     if args.motion not in MOTIONS:
         ap.error(f"--motion must be one of {', '.join(MOTIONS)}")
@@ -709,7 +727,11 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--live-seconds must exceed {LIVE_WARMUP_S + 0.3:g} and --live-repeats be "
                  "at least 1")
     t0 = time.perf_counter()
-    rec = run_loop(args.motion, args.seconds)
+    with progress(args.seconds, f"scripted {args.motion} run", unit="sim s",
+                  bar_format="{l_bar}{bar}| {n:.1f}/{total:g} sim s [{elapsed}<{remaining}]"
+                  ) as bar:
+        rec = run_loop(args.motion, args.seconds,
+                       progress=lambda t_us: bar.update(t_us / 1e6 - bar.n))
     run_s = time.perf_counter() - t0
     acc = accuracy(rec)
     load_before = machine_load()

@@ -20,12 +20,21 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import psutil
 
-from tools.benchmarks.common import REPO, extract_tree, print_table, write_json
+from tools.benchmarks.common import (
+    REPO,
+    extract_tree,
+    print_columns,
+    print_table,
+    progress,
+    say,
+    write_json,
+)
 
 #: the supervisor's `cassie check` before anything starts (every node built once, ~3 s): a
 #: start-up cost, not a share of the running stack's cores, so it is left out of the total
@@ -51,8 +60,10 @@ def _name(p: psutil.Process) -> str:
 
 
 def run_launch(tree: Path, profile: str, duration_s: float, log_dir: Path,
-               extra: list[str]) -> dict[str, Any]:
-    """One launch of ``tree``; CPU seconds and lifetime per process name, and its output."""
+               extra: list[str], on_sample: Callable[[], None] | None = None
+               ) -> dict[str, Any]:
+    """One launch of ``tree``; CPU seconds and lifetime per process name, and its output.
+    ``on_sample`` is called after each sample of the processes (twice a second)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = str(tree)
     cmd = [sys.executable, "-m", "tools.cli", "launch", profile, "--duration", str(duration_s),
@@ -75,6 +86,8 @@ def run_launch(tree: Path, profile: str, duration_s: float, log_dir: Path,
                 rec["last"] = time.monotonic()
             except psutil.Error:
                 pass
+        if on_sample is not None:
+            on_sample()
         time.sleep(0.5)
     out = p.stdout.read() if p.stdout else ""
     per: dict[str, dict[str, float]] = {}
@@ -118,15 +131,19 @@ def main(argv: list[str] | None = None) -> int:
         trees = {"baseline": extract_tree(args.baseline), "this": REPO}
     work = args.keep or Path(tempfile.mkdtemp(prefix="bench-launch-"))
     runs: dict[str, list[dict[str, Any]]] = {k: [] for k in trees}
-    for i in range(args.repeats):
-        for name, tree in trees.items():
-            logs = work / f"{name}{i}"
-            print(f"launch {i + 1}/{args.repeats} of {name} ({tree}), {args.duration:g} s ...",
-                  flush=True)
-            r = run_launch(tree, args.profile, args.duration, logs, args.launch_args)
-            runs[name].append(r)
-            (logs / "report.txt").write_text(r["report"])
-            print(f"  {r['result']}  {r['robot']}", flush=True)
+    # one step per launch (each its start-up, the run and its report): the ETA from the first
+    with progress(args.repeats * len(trees), "launches", unit="launch") as bar:
+        for i in range(args.repeats):
+            for name, tree in trees.items():
+                logs = work / f"{name}{i}"
+                say(f"launch {i + 1}/{args.repeats} of {name} ({tree}), {args.duration:g} s ...")
+                # redrawn as it samples, so the elapsed time moves during a launch
+                r = run_launch(tree, args.profile, args.duration, logs, args.launch_args,
+                               on_sample=bar.refresh)
+                runs[name].append(r)
+                (logs / "report.txt").write_text(r["report"])
+                say(f"  {r['result']}  {r['robot']}")
+                bar.update(1)
     figures: dict[str, Any] = {"profile": args.profile, "duration_s": args.duration,
                                "repeats": args.repeats}
     shares = {name: [share(r["per"]) for r in rs] for name, rs in runs.items()}
@@ -152,12 +169,9 @@ def main(argv: list[str] | None = None) -> int:
     rows.append(["total", *(f"{figures[f'{n}_total_share']:.3f}" for n in trees),
                  *([f"{figures['this_total_share'] / figures['baseline_total_share']:.2f}"]
                    if args.baseline else [])])
-    widths = [max(len(str(r[i])) for r in [head, *rows]) + 2 for i in range(len(head))]
     print("\nCPU, share of one core (psutil: CPU seconds / seconds alive), mean of the repeats;"
           f" the total leaves out the {PRECHECK}")
-    for r in [head, *rows]:
-        print("".join(str(c).rjust(w) if i else str(c).ljust(w)
-                      for i, (c, w) in enumerate(zip(r, widths, strict=True))))
+    print_columns(head, rows)
     for name, rs in runs.items():
         for i, r in enumerate(rs):
             figures[f"{name}{i}_result"] = r["result"]

@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from tools.benchmarks.common import print_table, summarize, write_json
+from tools.benchmarks.common import print_table, progress, summarize, write_json
 
 _UDP = struct.Struct("<qqd")  # seq, send_mono_ns, one-way hop measured by the peer (us)
 
@@ -88,10 +88,13 @@ def _spawn_peer(args: list[str]) -> subprocess.Popen[str]:
     return p
 
 
-def _pace(rate_hz: float, seconds: float, send, poll) -> int:  # type: ignore[no-untyped-def]
-    """Call send(seq) on absolute deadlines at rate_hz for seconds, polling in between."""
+def _pace(rate_hz: float, seconds: float, send, poll,  # type: ignore[no-untyped-def]
+          desc: str = "pings") -> int:
+    """Call send(seq) on absolute deadlines at rate_hz for seconds, polling in between
+    (``desc`` names the progress bar)."""
     period = int(1e9 / rate_hz)
     n = int(seconds * rate_hz)
+    bar = progress(n, desc, unit="ping")
     t0 = time.monotonic_ns() + 10_000_000
     for k in range(n):
         slot = t0 + k * period
@@ -100,9 +103,14 @@ def _pace(rate_hz: float, seconds: float, send, poll) -> int:  # type: ignore[no
             if wait <= 150_000:
                 break
             poll((wait - 150_000) / 1e9)
+        # between the polls and the spin before the send: the last pong is in by now (a hop
+        # is ~0.1 ms of the period's 0.5-1 ms), and a redraw (at most twice a second) only
+        # eats into the spin; the send's own time stamp is taken in send()
+        bar.update(1)
         while time.monotonic_ns() < slot:
             pass
         send(k)
+    bar.close()
     end = time.monotonic_ns() + 200_000_000
     while time.monotonic_ns() < end:
         poll(0.01)
@@ -137,7 +145,7 @@ def measure_lcm(url: str, rate_hz: float, seconds: float) -> tuple[np.ndarray, n
             bus.publish("BENCH_PING", ping)  # header.seq counts from 0 with k
 
         time.sleep(0.3)
-        n = _pace(rate_hz, seconds, send, lambda t: bus.drain(t))
+        n = _pace(rate_hz, seconds, send, lambda t: bus.drain(t), f"LCM {rate_hz:g} Hz")
         return np.array(hop), np.array(rtt), n
     finally:
         peer.terminate()
@@ -176,7 +184,7 @@ def measure_udp(rate_hz: float, seconds: float) -> tuple[np.ndarray, np.ndarray,
             sent_at[k] = now
             tx.sendto(_UDP.pack(k, now, 0.0), ("127.0.0.1", port_in))
 
-        n = _pace(rate_hz, seconds, send, poll)
+        n = _pace(rate_hz, seconds, send, poll, f"UDP {rate_hz:g} Hz")
         return np.array(hop), np.array(rtt), n
     finally:
         peer.terminate()
@@ -231,33 +239,20 @@ def main(argv: list[str] | None = None) -> int:
     figures = run(rates, args.seconds, url)
     for rate in rates:
         tag = f"{int(rate)}hz"
-        rows = []
+        rows: list[tuple[str, ...]] = []
         for stat in ("median", "p99", "p999", "max"):
             lcm_v = figures[f"lcm_{tag}_hop_{stat}_ms"]
             udp_v = figures[f"udp_{tag}_hop_{stat}_ms"]
-            rows.append(
-                (
-                    f"one-way hop {stat:<6}",
-                    f"LCM {lcm_v:7.3f} ms   UDP {udp_v:7.3f} ms   ratio {lcm_v / udp_v:5.2f}",
-                )
-            )
+            rows.append((f"one-way hop {stat} (ms)", f"{lcm_v:.3f}", f"{udp_v:.3f}",
+                         f"{lcm_v / udp_v:.2f}"))
         for stat in ("median", "p99"):
-            rows.append(
-                (
-                    f"round trip {stat:<7}",
-                    f"LCM {figures[f'lcm_{tag}_rtt_{stat}_ms']:7.3f}"
-                    f" ms   UDP {figures[f'udp_{tag}_rtt_{stat}_ms']:7.3f} ms",
-                )
-            )
-        rows.append(
-            (
-                "loss",
-                f"LCM {figures[f'lcm_{tag}_loss_ratio']:.4%}   "
-                f"UDP {figures[f'udp_{tag}_loss_ratio']:.4%}   "
-                f"of {figures[f'lcm_{tag}_sent']} pings",
-            )
-        )
-        print_table(f"LCM vs UDP, Python to Python, {int(rate)} Hz, {args.seconds:.0f} s", rows)
+            rows.append((f"round trip {stat} (ms)", f"{figures[f'lcm_{tag}_rtt_{stat}_ms']:.3f}",
+                         f"{figures[f'udp_{tag}_rtt_{stat}_ms']:.3f}", ""))
+        rows.append((f"loss (of {figures[f'lcm_{tag}_sent']} pings)",
+                     f"{figures[f'lcm_{tag}_loss_ratio']:.4%}",
+                     f"{figures[f'udp_{tag}_loss_ratio']:.4%}", ""))
+        print_table(f"LCM vs UDP, Python to Python, {int(rate)} Hz, {args.seconds:.0f} s", rows,
+                    columns=["", "LCM", "UDP", "LCM / UDP"], justify="lrrr")
     write_json(
         args.json,
         "lcm",

@@ -24,10 +24,18 @@ from typing import Any
 import numpy as np
 
 from processes.mpfc import MpfcParams, MpfcSolver
-from processes.mpfc.gurobi_backend import GurobiBackend, gurobi_available
-from processes.mpfc.instances import Instance, random_instance
 from processes.mpfc.problem import MpfcModel, build_miqp
-from tools.benchmarks.common import machine_description, print_table, summarize, write_json
+from processes.mpfc.solver import Instance
+from tools.benchmarks.common import (
+    machine_description,
+    print_table,
+    progress,
+    say,
+    summarize,
+    write_json,
+)
+from tools.testbed.gurobi_reference import GurobiBackend, gurobi_available
+from tools.testbed.mpfc_instances import random_instance
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_CONFIG = REPO / "hw_config" / "gains" / "mpfc.yaml"
@@ -45,7 +53,8 @@ def compare_gurobi(backend: GurobiBackend, model: MpfcModel, problems: list[tupl
     g_run, g_wall, g_nodes = [], [], []
     compared = ours_higher = gurobi_higher = status_diff = 0
     max_rel = 0.0
-    for done, (inp, lf, status, objective, _) in enumerate(problems, 1):
+    bar = progress(len(problems), "Gurobi", unit="solve")
+    for inp, lf, status, objective, _ in problems:
         g = backend.solve(build_miqp(model, inp, lf))
         g_run.append(g.runtime_ms)
         g_wall.append(g.wall_ms)
@@ -58,8 +67,8 @@ def compare_gurobi(backend: GurobiBackend, model: MpfcModel, problems: list[tupl
             gurobi_higher += rel < -1e-6
         elif (status == "infeasible") != (g.status == "infeasible"):
             status_diff += 1
-        if done % 1000 == 0:
-            print(f"  ... Gurobi {done}/{len(problems)}", file=sys.stderr, flush=True)
+        bar.update(1)  # (Gurobi's own runtime and the backend's wall clock are taken inside)
+    bar.close()
     gr = np.asarray(g_run)
     ours = np.asarray([p[4] for p in problems])
     figs: dict[str, object] = {}
@@ -93,6 +102,7 @@ def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_eve
     wall, cpu, opt, nodes, counts, cold = [], [], [], [], [], []
     statuses: dict[str, int] = {}
     problems = []  # (inputs, footholds, status, objective, wall) for the Gurobi pass
+    bar = progress(solves, "MPFC solves", unit="solve")
     gc.collect()
     gc.disable()
     try:
@@ -119,6 +129,7 @@ def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_eve
                     problems.append((solver.last_inputs, solver.last_local, sol.status,
                                      sol.objective, sol.solve_wall_ms))
                 k += 1
+                bar.update(1)  # after the solve's clocks are read: outside what is timed
                 if t_rem - WARM_DT_S <= 0.0:
                     break
                 # propagate along the ALIP for WARM_DT_S with small noise, later in the stance
@@ -126,6 +137,7 @@ def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_eve
                 t_rem -= WARM_DT_S
     finally:
         gc.enable()
+        bar.close()
     w = np.asarray(wall)
     c = np.asarray(cold)
     figs: dict[str, object] = {"solves": len(w), "seed": seed,
@@ -170,6 +182,8 @@ def record_closed_loop(terrain: str, seeds: int, seconds: float
 
     params: list[MpfcParams] = []
     episodes: list[list[Instance]] = []
+    # a step per run (each run draws its own bar of sim seconds below this one)
+    bar = progress(seeds, f"recording {terrain}", unit="run")
     for seed in range(seeds):
         rec: list[Instance] = []
 
@@ -182,10 +196,11 @@ def record_closed_loop(terrain: str, seeds: int, seconds: float
 
         trial = run_trial(terrain, seconds, seed, None, False, 0.375,
                           HW_CONFIG_DIR / "experiment.yaml", setup=attach)
-        print(f"  recorded {len(rec)} solves: {terrain} seed {seed}, "
-              f"{trial.duration_s:.1f} s walked{' (fell)' if trial.fell else ''}",
-              file=sys.stderr, flush=True)
+        say(f"  recorded {len(rec)} solves: {terrain} seed {seed}, "
+            f"{trial.duration_s:.1f} s walked{' (fell)' if trial.fell else ''}", sys.stderr)
         episodes.append(rec)
+        bar.update(1)
+    bar.close()
     if not params:
         raise SystemExit("the experiment profile has no MPFC node: nothing to record")
     return params[0], episodes
@@ -199,6 +214,7 @@ def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool 
     statuses: dict[str, int] = {}
     problems = []  # (inputs, footholds, status, objective, wall) for the Gurobi pass
     model = MpfcSolver(params).model
+    bar = progress(sum(len(ep) for ep in episodes), "replayed solves", unit="solve")
     gc.collect()
     gc.disable()
     try:
@@ -214,8 +230,10 @@ def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool 
                 if use_gurobi:
                     problems.append((solver.last_inputs, solver.last_local, sol.status,
                                      sol.objective, sol.solve_wall_ms))
+                bar.update(1)  # (the solver times itself: this is outside its clocks)
     finally:
         gc.enable()
+        bar.close()
     w = np.asarray(wall)
     figs: dict[str, object] = {"closed_loop_solves": int(w.size)}
     figs.update(summarize(w, "closed_loop_solve"))
@@ -269,7 +287,8 @@ def main(argv: list[str] | None = None) -> int:
                     list(figs.items()))
         write_json(args.json, "mpfc_closed_loop", figs)
         return 0
-    params = MpfcParams.from_yaml(args.config, args.variant)
+    from runtime.params import load  # the gains file, in a column of Table V
+    params = load(MpfcParams, args.config, args.variant)
     use_gurobi = not args.no_gurobi and gurobi_available()
     if not args.no_gurobi and not use_gurobi:
         print("gurobipy not installed (or no licence): Gurobi comparison skipped",

@@ -27,7 +27,14 @@ from typing import Any
 
 import numpy as np
 
-from tools.benchmarks.common import DirectInbox, extract_tree, print_table, summarize, write_json
+from tools.benchmarks.common import (
+    DirectInbox,
+    extract_tree,
+    print_table,
+    progress,
+    summarize,
+    write_json,
+)
 
 DEADLINE_MS = 1.0
 
@@ -52,9 +59,9 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     import mujoco
 
     from lcmtypes import command_t, robot_state_t
-    from processes.mpfc.process import make_node
     from processes.osc.controller import SAFE, OscController
     from processes.osc.model import load_cassie, standing_pose
+    from runtime.builder import build_node
     from runtime.config import HW_CONFIG_DIR, load_profile
 
     m = load_cassie()
@@ -64,13 +71,14 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     mujoco.mj_forward(m, d)
     osc = OscController()
     profile = load_profile(HW_CONFIG_DIR / "sim.yaml")
-    mpfc = make_node(profile.processes["mpfc"], profile)
+    mpfc = build_node(profile.processes["mpfc"], profile)
     ctx, inbox = _Published(), DirectInbox("state")
     cmd = command_t()
     cmd.mode = 1
     cmd.vx = 0.375
     plan = None
     out: list[tuple[float, np.ndarray, np.ndarray, Any, Any]] = []
+    bar = progress(ticks, f"recording {kind}", unit="tick")
     for k in range(ticks):
         t = float(d.time)
         if kind == "walking" and t >= 0.25:
@@ -94,6 +102,8 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
             break
         d.ctrl[:] = u / osc.model.gear
         mujoco.mj_step(m, d)
+        bar.update(1)
+    bar.close()
     return out
 
 
@@ -111,10 +121,11 @@ class Replay:
 
 
 def _replay(states: list[tuple[float, np.ndarray, np.ndarray, Any, Any]],
-            controller: Callable[[], Any] | None = None) -> Replay:
+            controller: Callable[[], Any] | None = None, desc: str = "replay") -> Replay:
     """Time every tick of a fresh controller on the recorded states (ms): wall clock, and
     this thread's CPU time (which a busy shared machine inflates much less).
-    ``controller`` builds the controller to time (default: this tree's ``OscController``)."""
+    ``controller`` builds the controller to time (default: this tree's ``OscController``);
+    ``desc`` names the progress bar."""
     if controller is None:
         from processes.osc.controller import OscController as controller
 
@@ -122,6 +133,7 @@ def _replay(states: list[tuple[float, np.ndarray, np.ndarray, Any, Any]],
     n = len(states)
     tick, cpu, solve, iters = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
     mode, us = np.zeros(n, dtype=int), np.zeros((n, 10))
+    bar = progress(n, desc, unit="tick")
     gc.collect()
     gc.disable()
     try:
@@ -135,8 +147,10 @@ def _replay(states: list[tuple[float, np.ndarray, np.ndarray, Any, Any]],
             iters[i] = dbg.qp_iterations
             mode[i] = dbg.mode
             us[i] = u
+            bar.update(1)  # after both clocks are read: outside the timed tick
     finally:
         gc.enable()
+        bar.close()
     return Replay(tick, cpu, solve, iters, mode, us)
 
 
@@ -173,9 +187,9 @@ def side_by_side(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, 
     rows: list[tuple[str, object]] = []
     for kind, states in runs.items():
         got: dict[str, list[Replay]] = {"baseline": [], "this": []}
-        for _ in range(repeats):
-            got["baseline"].append(_replay(states, baseline))
-            got["this"].append(_replay(states, OscController))
+        for k in range(repeats):
+            got["baseline"].append(_replay(states, baseline, f"{kind} baseline {k + 1}/{repeats}"))
+            got["this"].append(_replay(states, OscController, f"{kind} this {k + 1}/{repeats}"))
         for name, reps in got.items():
             for what in ("tick", "cpu"):
                 a = np.concatenate([getattr(r, what) for r in reps])
@@ -293,19 +307,21 @@ def _gap(P: np.ndarray, c: np.ndarray, x: np.ndarray, ref: np.ndarray) -> tuple[
     return float(np.abs(x[:10] - ref[:10]).max()), float((cost - cost_ref) / abs(cost_ref))
 
 
-def _versus_optimum(solved: list[tuple[np.ndarray, ...]]
+def _versus_optimum(solved: list[tuple[np.ndarray, ...]], desc: str = "QPs vs optimum"
                     ) -> tuple[list[float], list[float], list[float], list[float]]:
     """For each solved QP (P, c, lo, hi, G, x): x's KKT residual, and where piqp converged
     tightly, the torque difference and cost excess against that optimum and its residual."""
     du, ex, kkt, kkt_ref = [], [], [], []
-    for P, c, lo, hi, G, x in solved:
-        kkt.append(_kkt(P, c, lo, hi, G, x))
-        ref = tight_optimum(P, c, lo, hi, G)
-        if ref is not None:
-            d, e = _gap(P, c, x, ref)
-            du.append(d)
-            ex.append(e)
-            kkt_ref.append(_kkt(P, c, lo, hi, G, ref))
+    with progress(len(solved), desc, unit="QP") as bar:  # untimed, and slow: a tight solve each
+        for P, c, lo, hi, G, x in solved:
+            kkt.append(_kkt(P, c, lo, hi, G, x))
+            ref = tight_optimum(P, c, lo, hi, G)
+            if ref is not None:
+                d, e = _gap(P, c, x, ref)
+                du.append(d)
+                ex.append(e)
+                kkt_ref.append(_kkt(P, c, lo, hi, G, ref))
+            bar.update(1)
     return du, ex, kkt, kkt_ref
 
 
@@ -331,7 +347,7 @@ def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, An
                 continue
             x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
             solved.append((*osc.qp.last_problem(), x))
-        du, ex, kkt, kkt_ref = _versus_optimum(solved)
+        du, ex, kkt, kkt_ref = _versus_optimum(solved, f"{kind} QPs vs optimum")
         out[f"{kind}_this_vs_optimum_ticks"] = len(du)
         out[f"{kind}_this_vs_optimum_torque_max_nm"] = float(max(du, default=0.0))
         out[f"{kind}_this_vs_optimum_cost_excess_max_ratio"] = float(max(ex, default=0.0))
@@ -362,10 +378,10 @@ def optimality(runs: dict[str, list[tuple[float, np.ndarray, np.ndarray, Any, An
 
         bqp._Solver.solve = hooked
         try:
-            _replay(states, baseline)
+            _replay(states, baseline, f"{kind} baseline QPs")
         finally:
             bqp._Solver.solve = solve
-        du, ex, kkt, _ = _versus_optimum(seen)
+        du, ex, kkt, _ = _versus_optimum(seen, f"{kind} baseline QPs vs optimum")
         out[f"{kind}_baseline_piqp_vs_optimum_ticks"] = len(du)
         if du:
             out[f"{kind}_baseline_piqp_vs_optimum_torque_median_nm"] = float(np.median(du))
@@ -404,7 +420,7 @@ def main(argv: list[str] | None = None) -> int:
     runs = {}
     for kind in ("standing", "walking"):
         states = runs[kind] = _record(kind, args.ticks)
-        r = _replay(states)
+        r = _replay(states, desc=f"replay {kind}")
         all_ticks.append(r.tick)
         all_cpu.append(r.cpu)
         figures.update(summarize(r.tick, f"{kind}_tick"))

@@ -23,7 +23,7 @@ from processes.perception import ElevationMap, ElevationMapParams
 from processes.s3 import STAGES, S3Params, S3Pipeline
 from processes.s3 import synthetic as syn
 from processes.s3.metrics import coverage_mask, frame_iou
-from tools.benchmarks.common import print_table, summarize, write_json
+from tools.benchmarks.common import print_table, progress, summarize, write_json
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_CONFIG = REPO / "hw_config" / "gains" / "s3.yaml"
@@ -75,14 +75,17 @@ def _recorded(path: str, frames: int) -> tuple[Sequence, float]:
              None if low is None else low[k]) for k in range(n)), res
 
 
-def run_sequence(frames: Sequence, resolution: float, params: S3Params) -> dict[str, list[float]]:
-    """Run S3 over one sequence; per-frame stage times, IoUs and polygon counts."""
+def run_sequence(frames: Sequence, resolution: float, params: S3Params, total: int | None = None,
+                 desc: str = "S3 frames") -> dict[str, list[float]]:
+    """Run S3 over one sequence; per-frame stage times, IoUs and polygon counts (``total``
+    and ``desc``: the frames expected and the name, for the progress bar)."""
     pipe = S3Pipeline(params)
     out: dict[str, list[float]] = {s: [] for s in (*STAGES, "total", "wall", "cpu", "mapping",
                                                     "perception", "safe_iou",
                                                     "decomposition_iou", "polygons",
                                                     "acd_cuts", "whittle_cuts", "dropped")}
     prev = None
+    bar = progress(total, desc, unit="frame")
     for elevation, origin, _t, mapping_ms, lowest in frames:
         c0 = time.thread_time()
         t0 = time.perf_counter()
@@ -106,6 +109,9 @@ def run_sequence(frames: Sequence, resolution: float, params: S3Params) -> dict[
             out["decomposition_iou"].append(frame_iou(prev[1], prev[2], cover, origin,
                                                       resolution))
         prev = (r.safe_mask, cover, np.asarray(origin))
+        # here, before the next frame is made (and the map update timed inside its generator)
+        bar.update(1)
+    bar.close()
     return out
 
 
@@ -135,8 +141,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--profile", default=None, help="profile in the parameter file")
     args = ap.parse_args(argv)
 
-    params = S3Params.from_yaml(args.config, args.profile)
-    map_params = ElevationMapParams.from_yaml(MAP_CONFIG, args.profile)
+    from runtime.params import load  # --profile: a variant of the files (none: the top level)
+    params = load(S3Params, args.config, args.profile)
+    map_params = load(ElevationMapParams, MAP_CONFIG, args.profile)
     map_params = dataclasses.replace(map_params, decimation=1)   # frames come decimated
     resolution, cells = map_params.resolution_m, map_params.cells
     if args.maps:
@@ -160,7 +167,9 @@ def main(argv: list[str] | None = None) -> int:
     figures_load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     per_seq: dict[str, dict[str, list[float]]] = {}
     for name, (seq, res) in runs.items():
-        per_seq[name] = run_sequence(seq, res, params)
+        # (a recorded file may hold fewer frames: the bar then ends short)
+        per_seq[name] = run_sequence(seq, res, params, args.frames if args.frames > 0 else None,
+                                     name)
 
     merged: dict[str, list[float]] = {k: [] for k in next(iter(per_seq.values()))}
     for res_seq in per_seq.values():

@@ -46,9 +46,11 @@ from tools.benchmarks.common import (
     extract_tree,
     free_udp_port,
     print_table,
+    say,
     until_sigterm,
     write_json,
 )
+from tools.benchmarks.common import progress as progress_bar
 
 PERIOD_MS = 0.5
 #: what a baseline revision's sim needs from its tree
@@ -242,13 +244,16 @@ def run_interleaved(base_tree: Path | None, repeats: int,
         variants.insert(0, ("baseline", base_tree))
     load0 = machine_load()
     runs: dict[str, list[dict[str, Any]]] = {name: [] for name, _ in variants}
-    for k in range(repeats):
-        for name, tree in variants:
-            fig = run_once(tree)
-            runs[name].append(fig)
-            print(f"run {k + 1}/{repeats} {name}: CPU share {fig['cpu_share']:.3f}, tick "
-                  f"CPU median {fig['tick_cpu_median_ms'] * 1e3:.1f} us, p99 "
-                  f"{fig['tick_cpu_p99_ms'] * 1e3:.1f} us, {progress(fig)}", flush=True)
+    # a step per run, drawn between runs only: nothing of this process moves while one runs
+    with progress_bar(repeats * len(variants), "runs", unit="run") as bar:
+        for k in range(repeats):
+            for name, tree in variants:
+                fig = run_once(tree)
+                runs[name].append(fig)
+                say(f"run {k + 1}/{repeats} {name}: CPU share {fig['cpu_share']:.3f}, tick "
+                    f"CPU median {fig['tick_cpu_median_ms'] * 1e3:.1f} us, p99 "
+                    f"{fig['tick_cpu_p99_ms'] * 1e3:.1f} us, {progress(fig)}")
+                bar.update(1)
     load1 = machine_load()
     return {name: merge_runs(r) for name, r in runs.items()}, load0, load1
 
@@ -413,7 +418,7 @@ def _sim(tree: str | None, out_port: int, in_port: int, seconds: float, terrain:
     for note in apply_scheduling(proc):
         if "failed" in note:
             print(note, file=sys.stderr)
-    node = importlib.import_module(proc.module).make_node(proc, profile)
+    node = importlib.import_module("runtime.builder").build_node(proc, profile)
     return LiveRunner(node, proc, profile).run(duration_s=seconds)
 
 
