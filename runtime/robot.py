@@ -10,6 +10,7 @@ pay for mujoco.
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,20 @@ SPRING_JOINTS = ("shin", "heel-spring")
 #: capsule (menagerie cassie.xml), (front, rear): at the standing pose world x is +0.06, -0.10
 FOOT_BLADE_ENDS = ((-0.052821, 0.092622, 0.0), (0.069746, -0.010224, 0.0))
 FOOT_BLADE_RADIUS = 0.02
+
+
+
+def mount_rotation(pitch_down_deg: float) -> Any:
+    """The depth camera's mount on the pelvis: rotation pelvis <- optical frame (z forward,
+    x right, y down), pitched down by ``pitch_down_deg`` (the sim's camera and the map's
+    placement of it must agree: one formula)."""
+    import numpy as np
+
+    p = math.radians(pitch_down_deg)
+    z = np.array([math.cos(p), 0.0, -math.sin(p)])  # the optical axis
+    x = np.array([0.0, -1.0, 0.0])  # image right = pelvis -y
+    return np.column_stack([x, np.cross(z, x), z])
+
 
 _SHARED = Path(__file__).resolve().parents[2] / "shared" / "menagerie"
 

@@ -15,7 +15,6 @@ callers without a real-time loop, and lockstep renders inline.
 from __future__ import annotations
 
 import logging
-import math
 import os
 import struct
 import threading
@@ -25,6 +24,8 @@ from typing import Any
 
 import mujoco
 import numpy as np
+
+from runtime.robot import mount_rotation
 
 PELVIS_BODY = "cassie-pelvis"
 log = logging.getLogger(__name__)
@@ -64,15 +65,6 @@ class CameraConfig:
         """(fx, fy, cx, cy) of the decimated image (pixel centres preserved)."""
         k = self.decimation
         return (self.fx / k, self.fy / k, (self.cx + 0.5) / k - 0.5, (self.cy + 0.5) / k - 0.5)
-
-
-def mount_rotation(pitch_down_deg: float) -> np.ndarray:
-    """Rotation pelvis <- optical frame (z forward, x right, y down), pitched down."""
-    p = math.radians(pitch_down_deg)
-    z = np.array([math.cos(p), 0.0, -math.sin(p)])
-    x = np.array([0.0, -1.0, 0.0])
-    y = np.cross(z, x)
-    return np.column_stack([x, y, z])
 
 
 @dataclass

@@ -16,7 +16,6 @@ unknown cells around them take the feet's height (the initial submap, see
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,37 +24,12 @@ import numpy as np
 from lcmtypes import depth_frame_t, elevation_map_t, robot_state_t
 from processes.kinematics import AlipKinematics
 from processes.perception.elevation_map import CropBox, ElevationMap, ElevationMapParams
+from processes.perception.robot_view import RobotView
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Node
 from runtime.params import spec
 
 LAYERS = ("elevation", "variance", "lowest")
-#: Leg links cropped from the point cloud, with the half extents of their boxes (m), body frame.
-LEG_LINKS = {
-    "shin": (0.28, 0.06, 0.06),
-    "tarsus": (0.28, 0.06, 0.06),
-    "foot": (0.14, 0.06, 0.05),
-    "knee": (0.12, 0.07, 0.07),
-}
-
-
-def mount_rotation(pitch_down_deg: float) -> np.ndarray:
-    """Rotation pelvis <- optical frame (z forward, x right, y down), tilted down by the pitch."""
-    p = math.radians(pitch_down_deg)
-    z = np.array([math.cos(p), 0.0, -math.sin(p)])  # optical axis
-    x = np.array([0.0, -1.0, 0.0])  # image right = pelvis -y
-    return np.column_stack([x, np.cross(z, x), z])
-
-
-def rot_to_quat(r: np.ndarray) -> np.ndarray:
-    """Rotation matrix -> quaternion (w, x, y, z)."""
-    import mujoco
-
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(r).reshape(-1))
-    return q
-
-
 class PerceptionNode(Node):
     """Depth frame in, elevation map out; see the module docstring."""
 
@@ -76,15 +50,13 @@ class PerceptionNode(Node):
     ) -> None:
         self.map = ElevationMap(params)
         self.camera_pose = camera_pose
-        self.mount_pos = mount_pos
-        self.r_pc = mount_rotation(pitch_down_deg)
         self.crop_legs = crop_legs
         self.drift_correction = drift_correction
         self.kin = AlipKinematics()
+        self.robot = RobotView(self.kin, mount_pos, pitch_down_deg)
         self.status_text = "no frame yet"
         self.frames = 0
         self.rejected = 0
-        self.seeded = False  # the initial submap under the feet has been filled
 
     def tick(self, ctx: Any, inbox: Any) -> None:
         frame: depth_frame_t = inbox.trigger()
@@ -115,26 +87,20 @@ class PerceptionNode(Node):
         if self.camera_pose == "estimated":
             if not have_state:
                 return "no robot state yet: cannot place the camera"
-            pelvis_pos, pelvis_rot = self.kin.body_pose("cassie-pelvis")
-            cam_pos = pelvis_pos + pelvis_rot @ self.mount_pos
-            cam_quat = rot_to_quat(pelvis_rot @ self.r_pc)
+            cam_pos, cam_quat = self.robot.camera_pose()
         else:
             cam_pos = np.asarray(frame.camera_pos, dtype=float)
             cam_quat = np.asarray(frame.camera_quat, dtype=float)
         if have_state:
             self.map.recenter(self.kin.com[:2])
-            if not self.seeded and all(state.in_contact):
-                feet = np.asarray(self.kin.foot_points, dtype=float)
-                self.map.initialize_submap(feet[:, :2].mean(axis=0), float(feet[:, 2].mean()),
-                                           self.kin.pelvis_yaw())
-                self.seeded = True
+            if (seed := self.robot.seed(state.in_contact)) is not None:
+                self.map.initialize_submap(*seed)
             if self.crop_legs:
-                boxes = self._leg_boxes()
-            if self.drift_correction and any(state.in_contact):
-                stance = 0 if state.in_contact[0] else 1
-                if state.alip_stance in (0, 1) and state.in_contact[state.alip_stance]:
-                    stance = state.alip_stance
-                self.map.apply_drift_correction(self.kin.foot_points[stance])
+                boxes = self.robot.leg_boxes()
+            if self.drift_correction:
+                foot = self.robot.drift_foot(state.in_contact, state.alip_stance)
+                if foot is not None:
+                    self.map.apply_drift_correction(foot)
         return self.map.update_from_depth(
             depth_m,
             frame.fx,
@@ -146,14 +112,6 @@ class PerceptionNode(Node):
             leg_boxes=boxes,
             time_s=frame.header.utime * 1e-6,
         )
-
-    def _leg_boxes(self) -> list[CropBox]:
-        boxes = []
-        for side in ("left", "right"):
-            for link, half in LEG_LINKS.items():
-                pos, rot = self.kin.body_pose(f"{side}-{link}")
-                boxes.append(CropBox(center=pos, rotation=rot, half_extents=np.array(half)))
-        return boxes
 
     def _message(self, utime: int, status: str) -> elevation_map_t:
         m = self.map
