@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from runtime.errors import BusError, ConfigError, MulticastRouteError
+from runtime.errors import ConfigError, exit_code
 
 
 def run_process(args: argparse.Namespace) -> int:
@@ -237,19 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if os.environ.get("CASSIE_VERBOSE") else logging.INFO,
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
-    try:
-        return run_process(args)
-    except ConfigError as exc:
-        print(f"config error: {exc}", file=sys.stderr)
-        return 2
-    except MulticastRouteError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 3
-    except BusError as exc:
-        print(f"bus error: {exc}", file=sys.stderr)
-        return 3
-    except KeyboardInterrupt:
-        return 130
+    return exit_code(lambda: run_process(args))
 
 
 if __name__ == "__main__":

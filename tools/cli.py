@@ -9,7 +9,7 @@ import os
 import sys
 from pathlib import Path
 
-from runtime.errors import BusError, ConfigError, MulticastRouteError
+from runtime.errors import ConfigError, exit_code
 
 BENCHMARKS = ("sim", "estimator", "mpfc", "osc", "s3", "lcm", "launch", "bridge")
 
@@ -214,7 +214,8 @@ def main(argv: list[str] | None = None) -> int:
         level=logging.DEBUG if args.verbose else logging.INFO,
         format="%(asctime)s %(name)s %(levelname)s: %(message)s",
     )
-    try:
+
+    def command() -> int:
         if args.command == "bench":
             return _cmd_bench(args, rest)
         if args.command in ("list", "order", "logs"):
@@ -233,17 +234,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "deputy":
             return _cmd_deputy(args)
         return _cmd_run(args)
-    except ConfigError as exc:
-        print(f"config error: {exc}", file=sys.stderr)
-        return 2
-    except MulticastRouteError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 3
-    except BusError as exc:
-        print(f"bus error: {exc}", file=sys.stderr)
-        return 3
-    except KeyboardInterrupt:
-        return 130
+
+    return exit_code(command)
 
 
 if __name__ == "__main__":
