@@ -1,0 +1,149 @@
+"""`cassie experiment NAME`: a closed-loop walking experiment in the deterministic harness.
+
+The same process nodes as `cassie launch` (from ``hw_config/experiment.yaml``) are stepped in
+sim-time order inside this one process, so a result depends on the seed and the code, never on
+how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth; 40 cm with
+``--perception``, as the paper's Fig. 11), ``beam``
+(23 cm wide) and ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``), with
+ground-truth footholds from the sim, or with ``--perception`` the footholds of S3.
+
+Reported per trial, from the sim's ground truth: distance walked, mean forward speed against the
+command, falls (pelvis below 0.6 m over the terrain under it), footsteps (touchdowns) and
+footsteps outside every foothold, and whether the trial succeeded (no fall, speed within 15% of
+the command, no footstep outside a foothold).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from runtime.config import HW_CONFIG_DIR
+from tools.benchmarks.common import print_table, write_json
+from tools.experiment.courses import PERCEPTION_STAIRS_DEPTH_M, _terrain_file
+from tools.experiment.judge import Judge, Trial
+from tools.experiment.trials import run_live_trial, run_trial
+from tools.report import print_cpu, print_loops, print_realtime
+
+EXPERIMENTS = ("flat", "stairs", "beam", "stones")
+
+__all__ = ["EXPERIMENTS", "PERCEPTION_STAIRS_DEPTH_M", "Judge", "Trial", "_terrain_file",
+           "main", "run_live_trial", "run_trial"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="cassie experiment",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument("name", choices=EXPERIMENTS)
+    ap.add_argument("--duration", type=float, default=10.0, help="sim seconds per trial")
+    ap.add_argument("--seed", type=int, default=0, help="terrain seed (stones)")
+    ap.add_argument("--trials", type=int, default=1, help="trials, seeds seed..seed+N-1")
+    ap.add_argument("--dmin", type=float, default=None, help="stones: minimum side d_min, m")
+    ap.add_argument("--depth", type=float, default=None,
+                    help="stairs: tread depth, m (default 0.27 with true footholds and 0.40 "
+                    "with --perception: the paper's Fig. 11, top and bottom)")
+    ap.add_argument("--perception", action="store_true", help="S3 footholds, not ground truth")
+    ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
+    ap.add_argument("--profile", type=Path, default=HW_CONFIG_DIR / "experiment.yaml")
+    ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument(
+        "--launch",
+        choices=("lockstep", "realtime"),
+        default=None,
+        help="run the real multi-process stack (cassie launch of hw_config/sim.yaml) in this "
+        "mode instead of the deterministic harness; prints the loops' timing from its log",
+    )
+    ap.add_argument("--log-dir", type=Path, default=None,
+                    help="--launch: keep the LCM log and process logs here")
+    ap.add_argument("--dashboard", action="store_true",
+                    help="--launch: with the Rerun dashboard recording too (its CPU is in the "
+                         "report's CPU table)")
+    args = ap.parse_args(argv)
+    if args.dmin is not None and args.name != "stones":
+        ap.error("--dmin is for the stones experiment")
+    if args.depth is not None and (args.name != "stairs" or not 0.1 <= args.depth <= 2.0):
+        ap.error("--depth is for the stairs experiment, 0.1 to 2.0 m")
+    if args.duration <= 0 or args.trials < 1:
+        ap.error("--duration must be > 0 and --trials >= 1")
+    if args.name == "stairs" and args.perception and args.depth is None:
+        # S3's safety margins leave no steppable band on 27 cm treads; the paper's perceptive
+        # stairs are 40 cm deep (Section VIII-A, Fig. 11 bottom)
+        args.depth = PERCEPTION_STAIRS_DEPTH_M
+        print(f"stairs with perception: {args.depth:.2f} m treads, as the paper's Fig. 11 "
+              "(--depth to change)")
+    if args.launch:
+        base = args.profile if args.profile != HW_CONFIG_DIR / "experiment.yaml" else (
+            HW_CONFIG_DIR / "sim.yaml")
+        trials = [
+            run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
+                           args.vx, args.launch, base,
+                           args.log_dir / f"trial{i}" if args.log_dir else None, args.depth,
+                           args.dashboard)
+            for i in range(args.trials)
+        ]
+    else:
+        trials = [
+            run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
+                      args.vx, args.profile, depth=args.depth)
+            for i in range(args.trials)
+        ]
+    for tr in trials:
+        rows = {k: v for k, v in asdict(tr).items()
+                if k not in ("notes", "timing", "cpu", "realtime")}
+        print_table(f"experiment {tr.experiment}, seed {tr.seed}", rows)
+        if tr.timing:  # the live run's loops, as `cassie report` prints them from its log
+            print_loops(tr.timing)
+            print_cpu(tr.cpu)
+            print_realtime(tr.realtime)
+        for note in tr.notes:
+            print(f"  note: {note}")
+    ok = sum(t.success for t in trials)
+    figures: dict[str, Any] = {
+        "description": f"{args.name} in the deterministic harness"
+        + (" with perception" if args.perception else " with true footholds"),
+        "trials": len(trials),
+        "success_ratio": ok / len(trials),
+        "falls": sum(t.fell for t in trials),
+        "distance_m": float(np.mean([t.distance_m for t in trials])),
+        "mean_velocity_mps": float(np.mean([t.mean_velocity_mps for t in trials])),
+        "commanded_velocity_mps": args.vx,
+        "footsteps": sum(t.footsteps for t in trials),
+        "footsteps_outside": sum(t.footsteps_outside for t in trials),
+        "sim_duration_s": args.duration,
+    }
+    if args.dmin is not None:
+        figures["dmin_m"] = args.dmin
+    if args.depth is not None:
+        figures["stair_depth_m"] = args.depth
+    if args.launch:
+        figures["mode"] = args.launch
+        figures["description"] = f"{args.name} with cassie launch in {args.launch} mode"
+        for i, tr in enumerate(trials):
+            pre = "" if len(trials) == 1 else f"trial{i}/"
+            for key, row in tr.timing.items():
+                for k, v in row.items():
+                    figures[f"{pre}{key}/{k}"] = v
+            for name, row in (tr.cpu.get("processes") or {}).items():
+                figures[f"{pre}cpu/{name}/share"] = row["cpu_share"]
+            if tr.cpu:
+                figures[f"{pre}cpu/total_share"] = tr.cpu["total_share"]
+            for k in ("rtf", "states_per_packet", "torques_per_step"):
+                if k in tr.realtime:
+                    figures[f"{pre}realtime/{k}_ratio"] = tr.realtime[k]
+            figures[f"{pre}fell"] = tr.fell
+            figures[f"{pre}mean_velocity_mps"] = tr.mean_velocity_mps
+    print(f"\n{ok}/{len(trials)} trials succeeded")
+    write_json(args.json, f"experiment_{args.name}", figures)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

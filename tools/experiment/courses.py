@@ -1,0 +1,78 @@
+"""A trial's course: its terrain file (the paper's stairs at a tread depth, random stepping
+stones of a d_min and a seed) and the experiment profile that runs the stack on it."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from runtime.config import HW_CONFIG_DIR, load_profile, safe_load
+from runtime.config_types import Profile
+
+#: tread depth of ``cassie experiment stairs --perception`` (the paper's Fig. 11, bottom)
+PERCEPTION_STAIRS_DEPTH_M = 0.40
+
+
+def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
+                  depth: float | None = None) -> str:
+    if name == "stairs" and depth is not None:
+        # hw_config/terrains/stairs.yaml with another tread depth (Fig. 11: 27 cm with ground
+        # truth, 40 cm with perception)
+        doc = safe_load((HW_CONFIG_DIR / "terrains" / "stairs.yaml").read_text())
+        doc["params"]["depth"] = float(depth)
+        path = work / "stairs.yaml"
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        return str(path)
+    if name == "stones":
+        path = work / "stones.yaml"
+        path.write_text(
+            "terrain: stones\n"
+            f"seed: {seed}\nfoothold_margin: 0.02\nfoot_half_size: [0.10, 0.02]\n"
+            f"params: {{d_min: {dmin if dmin is not None else 0.35}, platform: 1.0,"
+            " pit_depth: 0.5}\n"
+        )
+        return str(path)
+    return str(HW_CONFIG_DIR / "terrains" / f"{name}.yaml")
+
+
+def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool, work: Path,
+                   mode: str | None = None) -> tuple[Path, list[str]]:
+    """The experiment's profile: the base one on ``terrain``, perception joining or not."""
+    base = load_profile(base_profile)
+    launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
+    if perception:
+        launch += [p for p in ("perception", "s3") if p not in launch]
+    sim_params: dict[str, Any] = {"terrain": terrain, "publish_footholds": not perception}
+    # depth frames only feed perception; with it, rendered inline in the harness (sim-time
+    # order, deterministic), as configured otherwise
+    sim_params["camera_render"] = "off" if not perception else ("auto" if mode else "inline")
+    doc: dict[str, Any] = {"include": [str(base_profile)], "profile": f"experiment_{name}"}
+    if mode:
+        doc["mode"] = mode
+    doc["launch"] = launch
+    doc["overrides"] = {"sim": {"params": sim_params},
+                        "mpfc": {"params": {"footholds": "channel"}}}
+    prof_path = work / "experiment.yaml"
+    prof_path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return prof_path, launch
+
+
+def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
+             work: Path, mode: str | None = None, depth: float | None = None
+             ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float]]:
+    """The trial's terrain and profile in ``work``: (profile path, profile, launched
+    processes, the terrain's ground-truth footholds for the judge, its height)."""
+    from sim import terrain as terrain_mod
+
+    terrain = _terrain_file(name, dmin, seed, work, depth)
+    prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
+    # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
+    # the foot that the controller aims within
+    ter = terrain_mod.load_terrain(terrain)
+    footholds = list(ter.landing_surfaces)
+    return prof_path, load_profile(prof_path), launch, footholds, ter.height_at
+
+
