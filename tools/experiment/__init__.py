@@ -16,6 +16,7 @@ the command, no footstep outside a foothold).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from dataclasses import asdict
 from pathlib import Path
@@ -66,7 +67,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dashboard", action="store_true",
                     help="--launch: with the Rerun dashboard recording too (its CPU is in the "
                          "report's CPU table)")
+    ap.add_argument("--sweep", default=None, metavar="dmin=LO:HI:STEP",
+                    help="a sweep: every value of the parameter (stones: dmin; stairs: depth; "
+                         "A:B:STEP or A,B,C) times --trials seeds, as jobs over the cores; "
+                         "resumable (finished trials are kept in OUT/trials.jsonl); writes "
+                         "OUT/summary.json and OUT/summary.png (tools/experiment/sweep.py)")
+    ap.add_argument("--out", type=Path, default=None, help="--sweep: its folder")
+    ap.add_argument("--jobs", type=int, default=None,
+                    help="--sweep: trials at once (default: one per core)")
     args = ap.parse_args(argv)
+    if args.sweep is not None:
+        return _sweep(ap, args)
     if args.dmin is not None and args.name != "stones":
         ap.error("--dmin is for the stones experiment")
     if args.depth is not None and (args.name != "stairs" or not 0.1 <= args.depth <= 2.0):
@@ -142,6 +153,46 @@ def main(argv: list[str] | None = None) -> int:
             figures[f"{pre}mean_velocity_mps"] = tr.mean_velocity_mps
     print(f"\n{ok}/{len(trials)} trials succeeded")
     write_json(args.json, f"experiment_{args.name}", figures)
+    return 0
+
+
+def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """``--sweep PARAM=VALUES``: the trials of every value, in parallel, resumable."""
+    from tools.experiment.sweep import TrialSpec, frange, run_sweep, summarise, write_summary
+
+    name, _, values = args.sweep.partition("=")
+    allowed = {"stones": "dmin", "stairs": "depth"}.get(args.name)
+    if name != allowed:
+        ap.error(f"--sweep for {args.name}: " + (f"{allowed}=LO:HI:STEP" if allowed
+                                                 else "nothing to sweep"))
+    if args.launch:
+        ap.error("--sweep runs in the deterministic harness (no --launch)")
+    try:
+        grid = frange(values)
+    except ValueError as exc:
+        ap.error(f"--sweep: {exc}")
+    out = args.out or Path(f"sweep_{args.name}_{name}")
+    specs = [TrialSpec(args.name, args.duration, args.seed + i,
+                       v if name == "dmin" else args.dmin, args.perception, args.vx,
+                       str(args.profile), v if name == "depth" else args.depth,
+                       point=(f"{name}_m", v))
+             for v in grid for i in range(args.trials)]
+    jobs = args.jobs or os.cpu_count() or 1
+    print(f"sweep {args.name} {name} over {grid}: {len(specs)} trials, {jobs} at a time, "
+          f"seeds {args.seed}..{args.seed + args.trials - 1}; results in {out}")
+    result = run_sweep(specs, out, jobs)
+    rows = summarise(result.trials)
+    feet = "S3" if args.perception else "true"
+    png = write_summary(rows, result, out, f"{args.name}: {len(specs) // max(len(grid), 1)} "
+                        f"trials per point, {feet} footholds", jobs)
+    print_table(f"sweep {args.name} over {name}", {
+        f"{r['value']:g}": f"success {100 * r['success_rate']:.0f} %, crossed "
+        f"{100 * r['crossed_rate']:.0f} %, {r['falls']} falls, {r['mean_distance_m']:.2f} m"
+        for r in rows})
+    per_hour = 3600.0 * result.ran / result.wall_s if result.ran and result.wall_s else 0.0
+    print(f"ran {result.ran} trial(s) now ({len(result.trials) - result.ran} were done "
+          f"before) in {result.wall_s:.0f} s: {per_hour:.0f} trials per hour on {jobs} "
+          f"job(s); {out / 'summary.json'}, {png}")
     return 0
 
 
