@@ -112,3 +112,27 @@ def test_stairs_with_perception_default_to_the_papers_40_cm_treads(monkeypatch, 
     with pytest.raises(Stop):
         ex.main(["stairs", "--perception", "--depth", "0.5"])
     assert seen["depth"] == 0.5
+
+
+def test_fixed_timing_pins_the_stance_time_to_its_nominal_in_the_variant_that_runs(
+        tmp_path) -> None:
+    """The paper's Fixed-T: t_min = t_max = T_ss in the MPFC's gains, whichever of its Table V
+    columns the profile runs; Opt-T (the default) leaves them as written."""
+    import importlib
+
+    from runtime.config import HW_CONFIG_DIR
+    from runtime.params import load
+    from tools.experiment.courses import _prepare
+
+    for fixed in (False, True):
+        work = tmp_path / str(fixed)
+        work.mkdir()
+        _, profile, *_ = _prepare(HW_CONFIG_DIR / "experiment.yaml", "flat", None, 0, False,
+                                  work, fixed_timing=fixed)
+        mpfc = profile.processes["mpfc"]
+        gains = load(importlib.import_module(mpfc.module).Gains, mpfc.gains_file,
+                     mpfc.params.get("variant", "simulation"))
+        if fixed:
+            assert gains.t_ss_min_s == gains.t_ss_max_s == gains.t_ss_s == 0.30
+        else:
+            assert (gains.t_ss_min_s, gains.t_ss_max_s) == (0.27, 0.33)

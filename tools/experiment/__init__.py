@@ -52,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="stairs: tread depth, m (default 0.27 with true footholds and 0.40 "
                     "with --perception: the paper's Fig. 11, top and bottom)")
     ap.add_argument("--perception", action="store_true", help="S3 footholds, not ground truth")
+    ap.add_argument("--fixed-timing", action="store_true",
+                    help="the MPFC's step-timing optimisation off: t_min = t_max = T_ss (the "
+                         "paper's Fixed-T; default Opt-T)")
     ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
     ap.add_argument("--profile", type=Path, default=HW_CONFIG_DIR / "experiment.yaml")
     ap.add_argument("--json", type=Path, default=None)
@@ -97,13 +100,14 @@ def main(argv: list[str] | None = None) -> int:
             run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                            args.vx, args.launch, base,
                            args.log_dir / f"trial{i}" if args.log_dir else None, args.depth,
-                           args.dashboard)
+                           args.dashboard, args.fixed_timing)
             for i in range(args.trials)
         ]
     else:
         trials = [
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
-                      args.vx, args.profile, depth=args.depth)
+                      args.vx, args.profile, depth=args.depth,
+                      fixed_timing=args.fixed_timing)
             for i in range(args.trials)
         ]
     for tr in trials:
@@ -175,7 +179,7 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     specs = [TrialSpec(args.name, args.duration, args.seed + i,
                        v if name == "dmin" else args.dmin, args.perception, args.vx,
                        str(args.profile), v if name == "depth" else args.depth,
-                       point=(f"{name}_m", v))
+                       fixed_timing=args.fixed_timing, point=(f"{name}_m", v))
              for v in grid for i in range(args.trials)]
     jobs = args.jobs or os.cpu_count() or 1
     print(f"sweep {args.name} {name} over {grid}: {len(specs)} trials, {jobs} at a time, "
@@ -183,8 +187,9 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     result = run_sweep(specs, out, jobs)
     rows = summarise(result.trials)
     feet = "S3" if args.perception else "true"
+    timing = "Fixed-T" if args.fixed_timing else "Opt-T"
     png = write_summary(rows, result, out, f"{args.name}: {len(specs) // max(len(grid), 1)} "
-                        f"trials per point, {feet} footholds", jobs)
+                        f"trials per point, {feet} footholds, {timing}", jobs)
     print_table(f"sweep {args.name} over {name}", {
         f"{r['value']:g}": f"success {100 * r['success_rate']:.0f} %, crossed "
         f"{100 * r['crossed_rate']:.0f} %, {r['falls']} falls, {r['mean_distance_m']:.2f} m"

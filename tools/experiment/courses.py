@@ -38,9 +38,28 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
     return str(HW_CONFIG_DIR / "terrains" / f"{name}.yaml")
 
 
+def _fixed_timing_gains(mpfc_gains: Path, work: Path) -> Path:
+    """The MPFC's gains with its step-timing optimisation off (the paper's Fixed-T): the
+    single-stance bounds t_min = t_max = T_ss, at the top and in every variant that sets them,
+    so the stance time is the nominal one whichever variant runs."""
+    doc = safe_load(mpfc_gains.read_text())
+    for block in (doc, *(doc.get("variants") or {}).values()):
+        if not isinstance(block, dict):
+            continue
+        nominal = block.get("t_ss_s", doc.get("t_ss_s"))
+        if block is doc or any(k in block for k in ("t_ss_s", "t_ss_min_s", "t_ss_max_s")):
+            block["t_ss_min_s"] = block["t_ss_max_s"] = nominal
+    path = work / "mpfc_fixed_timing.yaml"
+    path.write_text(f"# {mpfc_gains} with t_ss_min_s = t_ss_max_s = t_ss_s (Fixed-T)\n"
+                    + yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
 def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool, work: Path,
-                   mode: str | None = None) -> tuple[Path, list[str]]:
-    """The experiment's profile: the base one on ``terrain``, perception joining or not."""
+                   mode: str | None = None, fixed_timing: bool = False
+                   ) -> tuple[Path, list[str]]:
+    """The experiment's profile: the base one on ``terrain``, perception joining or not, the
+    MPFC's step timing optimised (Opt-T) or fixed (Fixed-T)."""
     base = load_profile(base_profile)
     launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
     if perception:
@@ -55,20 +74,26 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
     doc["launch"] = launch
     doc["overrides"] = {"sim": {"params": sim_params},
                         "mpfc": {"params": {"footholds": "channel"}}}
+    if fixed_timing:
+        gains = base.processes["mpfc"].gains_file
+        assert gains is not None  # (the builder requires one)
+        doc["overrides"]["mpfc"]["gains"] = str(_fixed_timing_gains(Path(gains), work))
     prof_path = work / "experiment.yaml"
     prof_path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return prof_path, launch
 
 
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
-             work: Path, mode: str | None = None, depth: float | None = None
+             work: Path, mode: str | None = None, depth: float | None = None,
+             fixed_timing: bool = False
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float]]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
     processes, the terrain's ground-truth footholds for the judge, its height)."""
     from sim import terrain as terrain_mod
 
     terrain = _terrain_file(name, dmin, seed, work, depth)
-    prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode)
+    prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode,
+                                       fixed_timing)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
     # the foot that the controller aims within
     ter = terrain_mod.load_terrain(terrain)

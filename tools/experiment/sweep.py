@@ -37,13 +37,15 @@ class TrialSpec:
     vx: float
     profile: str
     depth: float | None = None
+    fixed_timing: bool = False  # the MPFC's step timing fixed (the paper's Fixed-T)
     #: the swept parameter's name and value (for the summary), e.g. ("dmin_m", 0.5)
     point: tuple[str, float] = ("", 0.0)
 
     def key(self) -> str:
         """What makes a trial the same trial when a sweep resumes."""
         return json.dumps([self.name, self.duration_s, self.seed, self.dmin, self.perception,
-                           self.vx, self.profile, self.depth], sort_keys=True)
+                           self.vx, self.profile, self.depth, self.fixed_timing],
+                          sort_keys=True)
 
 
 @dataclass
@@ -59,7 +61,8 @@ def run_spec(spec: TrialSpec) -> dict[str, Any]:
 
     t0 = time.perf_counter()
     tr: Trial = run_trial(spec.name, spec.duration_s, spec.seed, spec.dmin, spec.perception,
-                          spec.vx, Path(spec.profile), depth=spec.depth)
+                          spec.vx, Path(spec.profile), depth=spec.depth,
+                          fixed_timing=spec.fixed_timing)
     rec = {k: v for k, v in asdict(tr).items() if k not in ("timing", "cpu", "realtime")}
     rec.update(key=spec.key(), point=list(spec.point), worker_wall_s=time.perf_counter() - t0,
                crossed=not tr.fell)

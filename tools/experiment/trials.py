@@ -36,6 +36,7 @@ def run_trial(
     base_profile: Path,
     setup: Callable[[Harness], None] | None = None,
     depth: float | None = None,
+    fixed_timing: bool = False,
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
     (or instrument) the harness's nodes before the run; ``depth`` is the stairs' tread depth
@@ -44,7 +45,8 @@ def run_trial(
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         _, profile, launch, footholds, ground = _prepare(base_profile, name, dmin, seed,
-                                                         perception, work, depth=depth)
+                                                         perception, work, depth=depth,
+                                                         fixed_timing=fixed_timing)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
@@ -90,6 +92,7 @@ def run_live_trial(
     log_dir: Path | None = None,
     depth: float | None = None,
     dashboard: bool = False,
+    fixed_timing: bool = False,
 ) -> Trial:
     """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
@@ -103,7 +106,7 @@ def run_live_trial(
         logs.mkdir(parents=True, exist_ok=True)
         prof_path, profile, launch, footholds, ground = _prepare(base_profile, name, dmin,
                                                                  seed, perception, work, mode,
-                                                                 depth)
+                                                                 depth, fixed_timing)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
         judge = Judge(footholds, math.inf, ground)
