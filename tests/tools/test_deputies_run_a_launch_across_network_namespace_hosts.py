@@ -158,8 +158,9 @@ class _Across:
         """The first match of ``pattern`` in the supervisor's output, waited for."""
         rx = re.compile(pattern, re.M)
         while (m := rx.search(self.out.text())) is None:
-            assert time.monotonic() < self.deadline and self.sheriff.poll() is None, \
-                self.out.text()[-3000:]
+            assert time.monotonic() < self.deadline and self.sheriff.poll() is None, (
+                self.out.text()[-3000:] + "".join(
+                    f"\n--- deputy {h}:\n{d.text()[-2000:]}" for h, d in self.dep_out.items()))
             time.sleep(0.2)
         return m
 
