@@ -8,6 +8,8 @@ from .applied_input_t import applied_input_t as applied_input_t
 from .command_t import command_t as command_t
 from .contact_t import contact_t as contact_t
 from .depth_frame_t import depth_frame_t as depth_frame_t
+from .deputy_orders_t import deputy_orders_t as deputy_orders_t
+from .deputy_status_t import deputy_status_t as deputy_status_t
 from .elevation_map_t import elevation_map_t as elevation_map_t
 from .foothold_set_t import foothold_set_t as foothold_set_t
 from .foothold_t import foothold_t as foothold_t
@@ -22,5 +24,3 @@ from .robot_state_t import robot_state_t as robot_state_t
 from .supervisor_orders_t import supervisor_orders_t as supervisor_orders_t
 from .supervisor_status_t import supervisor_status_t as supervisor_status_t
 from .torque_command_t import torque_command_t as torque_command_t
-from .deputy_orders_t import deputy_orders_t as deputy_orders_t
-from .deputy_status_t import deputy_status_t as deputy_status_t
