@@ -9,7 +9,8 @@ dropped and counted, and the node keeps the previous good one. A check has three
 * the ranges a process declares for its inputs in ``hw_config`` (``limits:`` in
   processes.yaml: role -> field -> [lo, hi], applied to every element of an array);
 * the consistency of a message type's own fields (``CONSISTENCY``: an elevation map's
-  byte count matches its grid), which no range can express;
+  byte count matches its grid; the checks are its codec's, ``runtime.codecs``), which no
+  range can express;
 * with ``utime_step_s`` in the role's limits, the stream's time: ``header.utime`` neither
   goes back nor jumps ahead by more than that from the last admitted message. One message
   off the stream's clock (a bit flip, a stale replay) is rejected; a real jump (a sim
@@ -27,6 +28,7 @@ from typing import Any
 
 from lcmtypes import elevation_map_t, foothold_set_t
 
+from .codecs import elevation_map_problem, foothold_set_problem
 from .errors import ConfigError
 
 _FLOATS = ("double", "float")
@@ -34,36 +36,10 @@ _NUMBERS = (*_FLOATS, "int8_t", "int16_t", "int32_t", "int64_t", "byte")
 
 Reason = str | None
 
-
-def _elevation_map(m: Any) -> Reason:
-    """The grid, layers and bytes agree (``elevation_map_t``'s own comment)."""
-    if m.rows <= 0 or m.cols <= 0:
-        return f"an elevation map of {m.rows} x {m.cols} cells"
-    if not m.resolution > 0.0:
-        return f"an elevation map with resolution {m.resolution}"
-    if m.num_layers != len(m.layer_names) or m.num_layers <= 0:
-        return f"an elevation map with {m.num_layers} layers named {len(m.layer_names)}"
-    want = 4 * m.rows * m.cols * m.num_layers
-    if len(m.data) != want:
-        return (f"an elevation map of {len(m.data)} data bytes where {m.rows} x {m.cols} "
-                f"cells x {m.num_layers} layers of float32 make {want}")
-    return None
-
-
-def _foothold_set(m: Any) -> Reason:
-    """Each polygon's half-spaces are complete and its normal is a direction."""
-    for k, f in enumerate(m.footholds):
-        if len(f.b) != len(f.A) or len(f.A) < 3:
-            return f"foothold {k} with {len(f.A)} half-space rows and {len(f.b)} offsets"
-        if sum(x * x for x in f.normal) < 0.25:
-            return f"foothold {k} with a normal of length < 0.5"
-    return None
-
-
 #: per message type: what its fields must satisfy together
 CONSISTENCY: dict[type, Callable[[Any], Reason]] = {
-    elevation_map_t: _elevation_map,
-    foothold_set_t: _foothold_set,
+    elevation_map_t: elevation_map_problem,
+    foothold_set_t: foothold_set_problem,
 }
 
 

@@ -23,7 +23,10 @@ from typing import Any
 
 import numpy as np
 
+from lcmtypes import foothold_set_t
+from runtime.codecs import footholds_to_msg
 from runtime.errors import ConfigError
+from runtime.geometry import Foothold
 from runtime.params import read, spec
 
 #: Table I of Acosta & Posa: uniform bounds of the stepping-stone samples (metres).
@@ -59,31 +62,6 @@ class Box:
 
 
 @dataclass(frozen=True)
-class Foothold:
-    """A convex, planar foothold: vertices CCW seen from above, plane ``normal . p = offset``."""
-
-    vertices: np.ndarray  # (n, 3)
-    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    offset: float = 0.0
-
-    def halfspaces(self) -> tuple[np.ndarray, np.ndarray]:
-        """(A, b) with A p <= b inside: one row per edge, outward unit normals in the xy plane
-        (the polygon is vertical-walled over its plane, as ``foothold_t`` describes)."""
-        v = self.vertices
-        edge = np.roll(v, -1, axis=0) - v
-        n = np.column_stack([edge[:, 1], -edge[:, 0], np.zeros(len(v))])  # outward for CCW
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
-        return n, np.einsum("ij,ij->i", n, v)
-
-    def contains_xy(self, x: float, y: float) -> bool:
-        """True if (x, y) is inside the polygon's projection (edges count as inside)."""
-        v = self.vertices[:, :2]
-        nxt = np.roll(v, -1, axis=0)
-        cross = (nxt[:, 0] - v[:, 0]) * (y - v[:, 1]) - (nxt[:, 1] - v[:, 1]) * (x - v[:, 0])
-        return bool((cross >= -1e-12).all())
-
-
-@dataclass(frozen=True)
 class Terrain:
     """Boxes to add to the model, the ground plane height (None: no ground) and footholds."""
 
@@ -116,50 +94,24 @@ class Terrain:
         return z
 
 
-def eroded_foothold(fh: Foothold, half_length: float, half_width: float) -> Foothold | None:
-    """``fh`` less the foot: the foot centres for which an axis-aligned (robot facing +x)
-    footprint of ``2 half_length`` x ``2 half_width`` lies inside ``fh``, or None if none do.
-
-    The Minkowski difference of a convex polygon and a rectangle: each edge's halfspace
-    ``a . p <= b`` moves inwards by the rectangle's support ``half_length |a_x| + half_width
-    |a_y|``; the new vertices are the intersections of neighbouring edges.
-    """
-    a, b = fh.halfspaces()
-    b = b - (half_length * np.abs(a[:, 0]) + half_width * np.abs(a[:, 1]))
-    n = len(b)
-    verts = np.zeros((n, 2))
-    for i in range(n):
-        (a0, a1), (c0, c1) = a[i - 1, :2], a[i, :2]
-        det = a0 * c1 - a1 * c0
-        if abs(det) < 1e-12:
-            return None
-        verts[i] = ((b[i - 1] * c1 - a1 * b[i]) / det, (a0 * b[i] - b[i - 1] * c0) / det)
-    # an edge that vanished leaves vertices outside the shrunk halfspaces (or a flipped
-    # polygon of no area): the foot does not fit
-    if np.any(verts @ a[:, :2].T > b + 1e-9):
-        return None
-    nxt = np.roll(verts, -1, axis=0)
-    area = 0.5 * float(np.sum(verts[:, 0] * nxt[:, 1] - nxt[:, 0] * verts[:, 1]))
-    if area <= 1e-9:
-        return None
-    nx, ny, nz = fh.normal
-    z = (fh.offset - nx * verts[:, 0] - ny * verts[:, 1]) / nz
-    return Foothold(np.column_stack([verts, z]), fh.normal, fh.offset)
-
-
 def foot_eroded(terrain: Terrain, half_length: float, half_width: float) -> Terrain:
-    """``terrain`` with its footholds shrunk for the foot (``eroded_foothold``); footholds the
-    foot does not fit on are dropped. The unshrunk ones stay as ``surfaces``."""
+    """``terrain`` with its footholds shrunk for the foot (``Foothold.eroded``: the foot centres
+    for which a ``2 half_length`` x ``2 half_width`` foot facing +x lies wholly on the face);
+    footholds the foot does not fit on are dropped. The unshrunk ones stay as ``surfaces``."""
     if half_length <= 0.0 and half_width <= 0.0:
         return terrain
-    holds = [eroded_foothold(f, half_length, half_width) for f in terrain.footholds]
+    holds = [f.eroded(half_length, half_width) for f in terrain.footholds]
     params = {**terrain.params, "foot_half_size": (half_length, half_width)}
     return replace(terrain, footholds=tuple(f for f in holds if f is not None),
                    surfaces=terrain.footholds, params=params)
 
 
 def _top_foothold(box: Box, margin: float) -> Foothold:
-    return Foothold(vertices=box.top_corners(margin), normal=(0.0, 0.0, 1.0), offset=box.top_z)
+    """The box's top face less ``margin``, a level foothold."""
+    if min(box.size[0], box.size[1]) <= 2.0 * margin:
+        raise ValueError(f"a box of {box.size[0]} x {box.size[1]} m has no top face left "
+                         f"inside a foothold margin of {margin} m")
+    return Foothold.from_ccw(box.top_corners(margin)[:, :2], (0.0, 0.0, 1.0), box.top_z)
 
 
 def _rect_foothold(x0: float, x1: float, y0: float, y1: float, z: float, margin: float) -> Foothold:
@@ -175,29 +127,11 @@ def _slab(x0: float, x1: float, width: float, top: float, bottom: float, y: floa
     )
 
 
-def foothold_set_msg(terrain: Terrain, utime: int = 0) -> Any:
-    """The terrain's ground-truth footholds as an ``lcmtypes.foothold_set_t`` (what S3 would
-    publish with perfect perception), for controllers run with perfect terrain knowledge."""
-    from lcmtypes import foothold_set_t, foothold_t
-
-    msg = foothold_set_t()
-    msg.header.utime = utime
-    msg.map_seq = -1  # not from an elevation map
-    for fh in terrain.footholds:
-        a, b = fh.halfspaces()
-        f = foothold_t()
-        f.normal = list(fh.normal)
-        f.offset = float(fh.offset)
-        f.num_halfspaces = len(b)
-        f.A = a.tolist()
-        f.b = b.tolist()
-        f.num_vertices = len(fh.vertices)
-        f.vertices = fh.vertices.tolist()
-        msg.footholds.append(f)
-    msg.num_footholds = len(msg.footholds)
-    msg.status = 0 if msg.footholds else 2
-    msg.status_text = f"ground truth: {terrain.name}"
-    return msg
+def foothold_set_msg(terrain: Terrain, utime: int = 0) -> foothold_set_t:
+    """The terrain's ground-truth footholds as a foothold set (what S3 would publish with
+    perfect perception), for controllers run with perfect terrain knowledge."""
+    return footholds_to_msg(terrain.footholds, utime, map_seq=-1,  # not from an elevation map
+                            status_text=f"ground truth: {terrain.name}")
 
 
 # -- generators ----------------------------------------------------------------------------

@@ -1,152 +1,20 @@
-"""Convex polygon footholds (Section IV-C) and the 2D geometry the exact search needs.
+"""The MPFC's footholds as padded arrays: the world set once per foothold set, the stance-frame
+pruning per solve (Section IV-C).
 
-A foothold is {p in R^3 : A p <= b, normal . p = offset}, the paper's F_i p <= c_i and
-f_i^T p = b_i of (20). Rows of A and the normal are normalised to unit length on construction,
-so that the big-M of (20) relaxes every row by M metres, as the paper requires.
-
-Because neither the ALIP dynamics nor the costs depend on footstep height (R has a zero z
-weight), the search works on the horizontal projection of each foothold: z is eliminated with
-the plane equation, leaving 2D halfspaces F p_xy <= c and the polygon's 2D vertices.
+The footholds themselves are ``runtime.geometry.Foothold``: unit half-space rows and a unit
+normal, so that the big-M of (20) relaxes every row by M metres. Because neither the ALIP
+dynamics nor the costs depend on footstep height (R has a zero z weight), the search works on
+their horizontal projections (``Foothold.halfspaces_xy``, ``Foothold.vertices_xy``); the 3D
+rows and planes stay for the big-M form (20).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
-
-@dataclass(frozen=True, eq=False)
-class Foothold:
-    """Convex polygon {p : A p <= b, normal . p = offset} in the world frame (metres)."""
-
-    A: np.ndarray
-    b: np.ndarray
-    normal: np.ndarray
-    offset: float
-
-    def __post_init__(self) -> None:
-        a = np.array(self.A, dtype=float).reshape(-1, 3)
-        b = np.array(self.b, dtype=float).reshape(-1)
-        n = np.array(self.normal, dtype=float).reshape(3)
-        if a.shape[0] != b.shape[0] or a.shape[0] < 3:
-            raise ValueError("Foothold needs k >= 3 halfspace rows with matching A and b")
-        nn = float(np.linalg.norm(n))
-        if not np.isfinite(nn) or nn == 0.0:
-            raise ValueError("Foothold normal must be a non-zero finite vector")
-        off = float(self.offset) / nn
-        n = n / nn
-        if n[2] < 0:  # orient the normal upward so the plane z-solve below is uniform
-            n, off = -n, -off
-        rn = np.linalg.norm(a, axis=1)
-        if np.any(rn == 0.0) or not np.all(np.isfinite(a)) or not np.all(np.isfinite(b)):
-            raise ValueError("Foothold rows must be finite and non-zero")
-        a = a / rn[:, None]
-        b = b / rn
-        for arr in (a, b, n):
-            arr.setflags(write=False)
-        object.__setattr__(self, "A", a)
-        object.__setattr__(self, "b", b)
-        object.__setattr__(self, "normal", n)
-        object.__setattr__(self, "offset", off)
-
-    @classmethod
-    def from_polygon(
-        cls,
-        vertices_xy: np.ndarray,
-        normal: np.ndarray | tuple[float, float, float] = (0.0, 0.0, 1.0),
-        offset: float = 0.0,
-    ) -> Foothold:
-        """Foothold from a convex 2D polygon (any orientation) lifted onto the plane n . p = d.
-
-        The halfspaces are vertical walls through the polygon's edges (A[:, 2] = 0).
-        """
-        v = _convex_ccw(np.asarray(vertices_xy, dtype=float).reshape(-1, 2))
-        edges = np.roll(v, -1, axis=0) - v
-        out = np.column_stack([edges[:, 1], -edges[:, 0], np.zeros(len(v))])  # outward normals
-        b = np.einsum("ij,ij->i", out[:, :2], v)
-        fh = cls(out, b, np.asarray(normal, dtype=float), float(offset))
-        # vertical walls: the horizontal projection is the polygon itself (fill the caches)
-        v.setflags(write=False)
-        fh.__dict__["vertices_xy"] = v
-        fh.__dict__["halfspaces_xy"] = (fh.A[:, :2], fh.b)
-        return fh
-
-    @classmethod
-    def from_vertices_3d(cls, vertices: np.ndarray) -> Foothold:
-        """Foothold from 3D vertices of a planar convex polygon (plane by least squares)."""
-        v = np.asarray(vertices, dtype=float).reshape(-1, 3)
-        centre = v.mean(axis=0)
-        _, _, vt = np.linalg.svd(v - centre)
-        n = vt[2] if vt[2, 2] >= 0 else -vt[2]
-        return cls.from_polygon(v[:, :2], n, float(n @ centre))
-
-    @cached_property
-    def plane_xy(self) -> tuple[np.ndarray, float]:
-        """(beta, alpha) with z = alpha + beta . p_xy on the foothold plane."""
-        n = self.normal
-        return -n[:2] / n[2], self.offset / n[2]
-
-    @cached_property
-    def halfspaces_xy(self) -> tuple[np.ndarray, np.ndarray]:
-        """2D halfspaces (F, c) of the horizontal projection, z eliminated by the plane."""
-        beta, alpha = self.plane_xy
-        f = self.A[:, :2] + np.outer(self.A[:, 2], beta)
-        c = self.b - self.A[:, 2] * alpha
-        nrm = np.linalg.norm(f, axis=1)
-        keep = nrm > 1e-12
-        return f[keep] / nrm[keep, None], c[keep] / nrm[keep]
-
-    @cached_property
-    def vertices_xy(self) -> np.ndarray:
-        """Counter-clockwise 2D vertices of the projection (empty (0, 2) if it is empty)."""
-        f, c = self.halfspaces_xy
-        return _vertices_from_halfspaces(f, c)
-
-    def contains(self, p: np.ndarray, tol: float = 1e-6) -> bool:
-        """True when the 3D point p lies in the foothold (to `tol` metres)."""
-        p = np.asarray(p, dtype=float)
-        on_plane = abs(self.normal @ p - self.offset) <= tol
-        return bool(np.all(self.A @ p <= self.b + tol) and on_plane)
-
-    def height_at(self, p_xy: np.ndarray) -> float:
-        """z of the foothold plane above the horizontal point p_xy."""
-        beta, alpha = self.plane_xy
-        return float(alpha + beta @ np.asarray(p_xy, dtype=float)[:2])
-
-
-def _convex_ccw(v: np.ndarray) -> np.ndarray:
-    """Order the vertices of a convex polygon counter-clockwise and drop duplicates."""
-    centre = v.mean(axis=0)
-    ang = np.arctan2(v[:, 1] - centre[1], v[:, 0] - centre[0])
-    v = v[np.argsort(ang)]
-    keep = np.linalg.norm(v - np.roll(v, 1, axis=0), axis=1) > 1e-12
-    v = v[keep]
-    if len(v) < 3:
-        raise ValueError("a foothold polygon needs at least 3 distinct vertices")
-    return v
-
-
-def _vertices_from_halfspaces(f: np.ndarray, c: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """Vertices of {p : F p <= c} in 2D from all pairwise line intersections (k is small)."""
-    k = len(f)
-    i, j = np.triu_indices(k, 1)
-    det = f[i, 0] * f[j, 1] - f[i, 1] * f[j, 0]
-    ok = np.abs(det) > 1e-12
-    i, j, det = i[ok], j[ok], det[ok]
-    x = (c[i] * f[j, 1] - c[j] * f[i, 1]) / det
-    y = (f[i, 0] * c[j] - f[j, 0] * c[i]) / det
-    pts = np.column_stack([x, y])
-    if len(pts) == 0:
-        return np.zeros((0, 2))
-    inside = np.all(pts @ f.T <= c + tol * (1.0 + np.abs(c)), axis=1)
-    pts = pts[inside]
-    if len(pts) < 3:
-        return np.zeros((0, 2))
-    pts = np.unique(np.round(pts, 12), axis=0)
-    centre = pts.mean(axis=0)
-    return pts[np.argsort(np.arctan2(pts[:, 1] - centre[1], pts[:, 0] - centre[0]))]
+from runtime.geometry import Foothold
 
 
 @dataclass

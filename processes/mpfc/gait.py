@@ -10,15 +10,11 @@ process.py's docstring); ``MapHeight`` is the elevation map's height lookup of S
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from processes.mpfc.footholds import Foothold
-
-if TYPE_CHECKING:
-    from lcmtypes import elevation_map_t
+from runtime.geometry import Foothold
 
 LEFT, RIGHT = 0, 1
 
@@ -136,19 +132,15 @@ class MapHeight:
         self.origin = np.zeros(2)
         self.res = 1.0
 
-    def set(self, msg: elevation_map_t) -> None:
-        names = list(msg.layer_names)
-        layer = next((n for n in ("elevation_inpainted", "elevation") if n in names), None)
-        if layer is None or msg.rows <= 0 or msg.cols <= 0:
+    def set(self, layers: Mapping[str, np.ndarray], origin_xy: Sequence[float],
+            resolution: float) -> None:
+        """Take the map's inpainted elevation layer, else its raw one (none: keep the last)."""
+        layer = next((n for n in ("elevation_inpainted", "elevation") if n in layers), None)
+        if layer is None:
             return
-        cells = msg.rows * msg.cols
-        data = np.frombuffer(msg.data, dtype="<f4")
-        if data.size < cells * len(names):
-            return
-        i = names.index(layer)
-        self.grid = data[i * cells : (i + 1) * cells].reshape(msg.rows, msg.cols)
-        self.origin = np.asarray(msg.origin, dtype=float)
-        self.res = float(msg.resolution)
+        self.grid = layers[layer]
+        self.origin = np.asarray(origin_xy, dtype=float)
+        self.res = float(resolution)
 
     def lookup(self, xy: np.ndarray) -> float | None:
         """Median of the 3 x 3 cells around ``xy`` (NaN cells ignored), or None off the map."""

@@ -36,11 +36,12 @@ from lcmtypes import (
     robot_state_t,
 )
 from processes.kinematics import AlipKinematics
-from processes.mpfc.footholds import Foothold
 from processes.mpfc.gait import GaitClock, MapHeight, ReachableFootholds
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver
+from runtime.codecs import elevation_map_from_msg, footholds_from_msg
 from runtime.config_types import ProcessConfig, Profile
+from runtime.geometry import Foothold
 from runtime.node import Node
 from runtime.params import spec
 
@@ -71,24 +72,6 @@ class Params:
     foothold_max_height_m: float = spec(DEFAULT_MAX_HEIGHT_M, lo=0.0, unit="m")
     #: the next footstep's height from the elevation map when there is one (Section IX-A-3)
     height_lookup: bool = True
-
-
-def footholds_from_msg(msg: foothold_set_t) -> list[Foothold]:
-    """lcm foothold set -> solver footholds (malformed polygons are skipped, not raised)."""
-    out = []
-    for f in msg.footholds[: msg.num_footholds]:
-        try:
-            out.append(
-                Foothold(
-                    np.asarray(f.A, dtype=float),
-                    np.asarray(f.b, dtype=float),
-                    np.asarray(f.normal, dtype=float),
-                    float(f.offset),
-                )
-            )
-        except ValueError:
-            continue
-    return out
 
 
 class MpfcNode(Node):
@@ -151,7 +134,9 @@ class MpfcNode(Node):
         if self.height_lookup and inbox.is_fresh("elevation_map"):
             m = inbox.latest("elevation_map")
             if m is not None:
-                self.map.set(m)
+                layers = elevation_map_from_msg(m)
+                if isinstance(layers, dict):  # else malformed: the last good map stays
+                    self.map.set(layers, m.origin, m.resolution)
 
     # -- the loop ------------------------------------------------------------------------------
     def tick(self, ctx: Any, inbox: Any) -> None:

@@ -18,11 +18,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from processes.mpfc.footholds import Foothold, LocalFootholds, WorldFootholds, yaw_rotation
+from processes.mpfc.footholds import LocalFootholds, WorldFootholds, yaw_rotation
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.problem import MpfcModel, SolveInputs
 from processes.mpfc.qp_engine import QpEngine
 from processes.mpfc.search import ExactSearch
+from runtime.geometry import Foothold
 
 STANCES = ("left", "right")
 

@@ -25,6 +25,7 @@ from lcmtypes import depth_frame_t, elevation_map_t, robot_state_t
 from processes.kinematics import AlipKinematics
 from processes.perception.elevation_map import CropBox, ElevationMap, ElevationMapParams
 from processes.perception.robot_view import RobotView
+from runtime.codecs import MAP_NO_DATA, MAP_OK, MAP_STALE, elevation_map_to_msg
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Node
 from runtime.params import spec
@@ -114,24 +115,13 @@ class PerceptionNode(Node):
         )
 
     def _message(self, utime: int, status: str) -> elevation_map_t:
+        """The map's layers as published: ok, stale (this frame not fused) or no data."""
         m = self.map
         layers = m.layers
-        msg = elevation_map_t()
-        msg.header.utime = utime
-        msg.resolution = float(m.params.resolution_m)
-        grid = layers["elevation"]
-        msg.rows, msg.cols = grid.shape
-        msg.origin = [float(m.origin[0]), float(m.origin[1])]
-        names = [n for n in LAYERS if n in layers]
-        msg.num_layers = len(names)
-        msg.layer_names = names
-        data = b"".join(np.ascontiguousarray(layers[n], dtype="<f4").tobytes() for n in names)
-        msg.num_bytes = len(data)
-        msg.data = data
-        known = np.isfinite(grid).any()
-        msg.status = 0 if status == "ok" and known else (2 if not known else 1)
-        msg.status_text = status
-        return msg
+        known = np.isfinite(layers["elevation"]).any()
+        code = MAP_OK if status == "ok" and known else (MAP_NO_DATA if not known else MAP_STALE)
+        return elevation_map_to_msg({n: layers[n] for n in LAYERS if n in layers},
+                                    m.params.resolution_m, m.origin, utime, code, status)
 
     def status(self) -> str:
         return f"{self.frames} frames, {self.rejected} not fused; last: {self.status_text}"

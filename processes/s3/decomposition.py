@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from runtime.geometry import signed_area
+
 _RAY_STEP_PX = 0.5
 
 
@@ -25,19 +27,6 @@ _RAY_STEP_PX = 0.5
 def _next(a: np.ndarray) -> np.ndarray:
     """The array shifted by one along axis 0, cyclically (a cheaper np.roll(a, -1, 0))."""
     return np.concatenate((a[1:], a[:1]))
-
-
-def signed_area(poly: np.ndarray) -> float:
-    """Shoelace signed area; positive for counter-clockwise vertices."""
-    if len(poly) < 3:
-        return 0.0
-    pts = poly.tolist() if isinstance(poly, np.ndarray) else poly
-    acc = 0.0
-    x0, y0 = pts[-1]
-    for x1, y1 in pts:       # a few dozen vertices: plain Python beats numpy's call overhead
-        acc += x0 * y1 - x1 * y0
-        x0, y0 = x1, y1
-    return 0.5 * acc
 
 
 def ccw(poly: np.ndarray) -> np.ndarray:

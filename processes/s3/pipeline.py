@@ -9,10 +9,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from processes.s3.decomposition import convex_decomposition, signed_area
+from processes.s3.decomposition import convex_decomposition
 from processes.s3.params import S3Params
-from processes.s3.planes import fit_planes, prism_halfspaces
+from processes.s3.planes import fit_planes
 from processes.s3.segmentation import Segmenter, inpaint, shift_mask
+from runtime.geometry import Foothold
 from runtime.params import check
 
 STAGES = ("inpainting", "criteria", "cleanup", "decomposition", "plane_fit")
@@ -25,33 +26,10 @@ STATUS_STALE = "stale map"
 STATUS_BAD = "bad input"
 
 
-@dataclass(frozen=True)
-class Foothold:
-    """One convex foothold {p : A p <= b, normal . p = offset} (world frame, Section IV-C)."""
-
-    vertices_xy: np.ndarray     # (k, 2) counter-clockwise, convex
-    normal: np.ndarray          # (3,) unit, n_z > 0
-    offset: float               # d in normal . p = d
-    A: np.ndarray               # (k, 3) prism halfspaces, unit rows
-    b: np.ndarray               # (k,)
-    rms_m: float = 0.0          # residual of the plane fit
-
-    @property
-    def vertices(self) -> np.ndarray:
-        """(k, 3) corners lifted onto the plane."""
-        n = self.normal
-        z = (self.offset - self.vertices_xy @ n[:2]) / n[2]
-        return np.column_stack((self.vertices_xy, z))
-
-    @property
-    def area_m2(self) -> float:
-        """Area of the xy polygon."""
-        return signed_area(self.vertices_xy)
-
-
 @dataclass
 class S3Result:
-    """One frame's output: the safe mask, the footholds, per-stage times (ms) and a status."""
+    """One frame's output: the safe mask, the footholds (world frame, Section IV-C), per-stage
+    times (ms) and a status."""
 
     status: str
     safe_mask: np.ndarray
@@ -61,6 +39,8 @@ class S3Result:
     origin_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
     inpainted: np.ndarray | None = None
     stats: dict[str, int] = field(default_factory=dict)   # acd_cuts, whittle_cuts, dropped
+    #: per foothold, the RMS residual of its plane fit (m)
+    plane_rms_m: list[float] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -107,7 +87,7 @@ class S3Pipeline:
             return self._empty(status, (0, 0), 0.0, np.zeros(2))
         return S3Result(status, prev.safe_mask, prev.footholds,
                         {s: 0.0 for s in STAGES} | {"total": 0.0}, prev.resolution,
-                        prev.origin_xy, prev.inpainted, prev.stats)
+                        prev.origin_xy, prev.inpainted, prev.stats, prev.plane_rms_m)
 
     def process(self, elevation: np.ndarray, resolution: float, origin_xy: np.ndarray,
                 map_time_s: float | None = None, now_s: float | None = None,
@@ -172,13 +152,17 @@ class S3Pipeline:
         t4 = time.perf_counter()
         if self._labels is None or self._labels.shape != e.shape:
             self._labels = np.zeros(e.shape, np.int32)
-        footholds = []
+        footholds: list[Foothold] = []
+        plane_rms: list[float] = []
         normals, offsets, rms = fit_planes(filled, polys_px, resolution, origin, self._labels)
         for k, poly in enumerate(polys_px):  # one least-squares plane per polygon
-            xy = origin + poly * resolution
-            a_mat, b_vec = prism_halfspaces(xy)
-            footholds.append(Foothold(xy, normals[k], float(offsets[k]), a_mat, b_vec,
-                                      float(rms[k])))
+            try:  # the decomposition's polygons are convex and counter-clockwise
+                footholds.append(Foothold.from_ccw(origin + poly * resolution, normals[k],
+                                                   float(offsets[k])))
+            except ValueError:  # no area left in metres: not a foothold
+                stats["dropped"] = stats.get("dropped", 0) + 1
+                continue
+            plane_rms.append(float(rms[k]))
         t5 = time.perf_counter()
         for name, (ta, tb) in zip(STAGES, ((t0, t1), (t1, t2), (t2, t3), (t3, t4), (t4, t5)),
                                   strict=True):
@@ -193,6 +177,6 @@ class S3Pipeline:
         status = STATUS_OK if footholds else STATUS_NO_SAFE
         stats["footholds"] = len(footholds)
         result = S3Result(status, mask, footholds, times, float(resolution), origin.copy(),
-                          filled, stats)
+                          filled, stats, plane_rms)
         self._last_result = result
         return result

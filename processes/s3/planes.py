@@ -1,4 +1,4 @@
-"""Least-squares plane per convex polygon (Section VI-B, last paragraph) and its 3D halfspaces.
+"""Least-squares plane per convex polygon (Section VI-B, last paragraph).
 
 The paper fits the plane to the polygon's vertices projected on the map; we fit to every
 (inpainted) map cell the polygon covers: more samples, the same estimator, and no single edge
@@ -98,14 +98,3 @@ def fit_planes(elevation: np.ndarray, polys_px: list[np.ndarray], resolution: fl
     py = my + origin_xy[1]
     offsets = normals[:, 0] * px + normals[:, 1] * py + normals[:, 2] * mz
     return normals, offsets, rms
-
-
-def prism_halfspaces(vertices_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A (k, 3), b (k,) with {p : A p <= b} the vertical prism over a CCW convex polygon; one
-    row per edge, unit outward normal in the xy plane (MPFC's F_i p <= c_i of Eq. (20a))."""
-    e = np.concatenate((vertices_xy[1:], vertices_xy[:1])) - vertices_xy
-    n = np.column_stack((e[:, 1], -e[:, 0]))
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    a = np.column_stack((n, np.zeros(len(n))))
-    b = np.einsum("ij,ij->i", n, vertices_xy)
-    return a, b

@@ -14,55 +14,19 @@ from typing import Any
 
 import numpy as np
 
-from lcmtypes import elevation_map_t, foothold_set_t, foothold_t
+from lcmtypes import elevation_map_t, foothold_set_t
 from processes.s3.params import S3Params
-from processes.s3.pipeline import S3Pipeline, S3Result
+from processes.s3.pipeline import STATUS_STALE, S3Pipeline, S3Result
+from runtime.codecs import elevation_map_from_msg, footholds_to_msg
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Node
 
-STATUS_OK, STATUS_PREVIOUS, STATUS_EMPTY = 0, 1, 2
-
-
-def decode_layers(msg: elevation_map_t) -> dict[str, np.ndarray] | str:
-    """The map's float32 layers by name, or a string saying why they cannot be read."""
-    cells = msg.rows * msg.cols
-    if msg.rows <= 0 or msg.cols <= 0:
-        return f"empty map ({msg.rows} x {msg.cols})"
-    if msg.num_layers != len(msg.layer_names) or len(msg.data) != 4 * cells * msg.num_layers:
-        return (
-            f"malformed map: {msg.num_layers} layers of {msg.rows} x {msg.cols} but "
-            f"{len(msg.data)} bytes"
-        )
-    flat = np.frombuffer(msg.data, dtype="<f4")
-    return {
-        name: flat[i * cells : (i + 1) * cells].reshape(msg.rows, msg.cols)
-        for i, name in enumerate(msg.layer_names)
-    }
-
 
 def foothold_message(result: S3Result, utime: int, map_seq: int) -> foothold_set_t:
-    """S3 result -> foothold_set_t (planes + half-spaces + vertices, world frame)."""
-    out = foothold_set_t()
-    out.header.utime = utime
-    out.map_seq = map_seq
-    for f in result.footholds:
-        m = foothold_t()
-        m.normal = [float(x) for x in f.normal]
-        m.offset = float(f.offset)
-        m.num_halfspaces = len(f.b)
-        m.A = np.asarray(f.A, dtype=float).tolist()
-        m.b = np.asarray(f.b, dtype=float).tolist()
-        verts = f.vertices
-        m.num_vertices = len(verts)
-        m.vertices = np.asarray(verts, dtype=float).tolist()
-        out.footholds.append(m)
-    out.num_footholds = len(out.footholds)
-    if result.status == "stale map":
-        out.status = STATUS_PREVIOUS
-    else:
-        out.status = STATUS_OK if out.num_footholds else STATUS_EMPTY
-    out.status_text = result.status
-    return out
+    """S3 result -> foothold set (planes + half-spaces + corners, world frame); a stale map's
+    set says the previous footholds were kept."""
+    return footholds_to_msg(result.footholds, utime, map_seq, result.status,
+                            previous=result.status == STATUS_STALE)
 
 
 class S3Node(Node):
@@ -81,7 +45,7 @@ class S3Node(Node):
     def tick(self, ctx: Any, inbox: Any) -> None:
         msg: elevation_map_t = inbox.trigger()
         self.maps += 1
-        layers = decode_layers(msg)
+        layers = elevation_map_from_msg(msg)
         if isinstance(layers, str) or "elevation" not in layers:
             why = layers if isinstance(layers, str) else "map has no 'elevation' layer"
             result = self.pipeline.process(np.empty((0, 0)), msg.resolution or 1.0, np.zeros(2))

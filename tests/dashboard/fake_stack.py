@@ -20,7 +20,6 @@ from lcmtypes import (
     depth_frame_t,
     elevation_map_t,
     foothold_set_t,
-    foothold_t,
     ground_truth_t,
     loop_timing_t,
     mpfc_debug_t,
@@ -31,6 +30,8 @@ from lcmtypes import (
     supervisor_status_t,
     torque_command_t,
 )
+from runtime.codecs import MAP_OK, elevation_map_to_msg, footholds_to_msg
+from runtime.geometry import Foothold
 
 #: The menagerie Cassie's ``home`` keyframe (nq 35), so forward kinematics gives real legs.
 HOME_Q = [
@@ -127,10 +128,8 @@ def depth(utime: int) -> depth_frame_t:
 
 
 def elevation_map(utime: int, with_mask: bool = False) -> elevation_map_t:
-    m = _header(elevation_map_t(), utime, "perception")
     n = MAP_N
-    m.resolution, m.rows, m.cols = MAP_RES, n, n
-    m.origin = [0.3 * utime * 1e-6 - 0.5 * (n - 1) * MAP_RES, -0.5 * (n - 1) * MAP_RES]
+    origin = [0.3 * utime * 1e-6 - 0.5 * (n - 1) * MAP_RES, -0.5 * (n - 1) * MAP_RES]
     jj = np.arange(n)[None, :].repeat(n, 0)
     elev = np.where(jj > n // 2, 0.15, 0.0).astype("<f4")  # a step half way
     elev[:3, :3] = np.nan
@@ -139,27 +138,16 @@ def elevation_map(utime: int, with_mask: bool = False) -> elevation_map_t:
         mask = np.ones((n, n), "<f4")
         mask[:, n // 2 - 1 : n // 2 + 2] = 0.0  # the step edge is unsafe
         layers["s3_mask"] = mask
-    m.num_layers, m.layer_names = len(layers), list(layers)
-    data = b"".join(v.tobytes() for v in layers.values())
-    m.num_bytes, m.data, m.status, m.status_text = len(data), data, 0, "ok"
-    return m
+    m = elevation_map_to_msg(layers, MAP_RES, origin, utime, MAP_OK, "ok")
+    return _header(m, utime, "perception")
 
 
 def footholds(utime: int, map_seq: int) -> foothold_set_t:
-    m = _header(foothold_set_t(), utime, "s3")
     x0 = 0.3 * utime * 1e-6
-    fhs = []
-    for xa, xb, z in [(x0 - 0.9, x0 - 0.05, 0.0), (x0 + 0.08, x0 + 0.9, 0.15)]:
-        f = foothold_t()
-        f.normal, f.offset = [0.0, 0.0, 1.0], z
-        verts = [[xa, -0.9, z], [xb, -0.9, z], [xb, 0.9, z], [xa, 0.9, z]]
-        f.num_vertices, f.vertices = 4, verts
-        f.num_halfspaces = 4
-        f.A = [[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]]
-        f.b = [xb, -xa, 0.9, 0.9]
-        fhs.append(f)
-    m.map_seq, m.num_footholds, m.footholds = map_seq, len(fhs), fhs
-    return m
+    fhs = [Foothold.from_ccw(np.array([[xa, -0.9], [xb, -0.9], [xb, 0.9], [xa, 0.9]]),
+                             (0.0, 0.0, 1.0), z)
+           for xa, xb, z in [(x0 - 0.9, x0 - 0.05, 0.0), (x0 + 0.08, x0 + 0.9, 0.15)]]
+    return _header(footholds_to_msg(fhs, utime, map_seq), utime, "s3")
 
 
 def timing(utime: int, process: str, loop: str, window: int) -> loop_timing_t:

@@ -55,6 +55,15 @@ def objective_matches(sol: MpfcSolution, ref: float, tol: float = 1e-6) -> bool:
     return sol.status == "optimal" and rel_err(sol.objective, ref) <= tol
 
 
+def solve_exactly(solver: MpfcSolver, inst: Instance, *note: object, **over) -> MpfcSolution:
+    """``solve``, asserting that its verdict is the exhaustive ``reference``'s of the same
+    problem (``note``: what the failure says first, besides the two verdicts)."""
+    sol = solve(solver, inst, **over)
+    ref, _ = reference(solver)
+    assert objective_matches(sol, ref), (*note, sol.status, sol.objective, ref)
+    return sol
+
+
 def exhaustive_search(search: ExactSearch, qp: CondensedQp, lf: LocalFootholds) -> SearchResult:
     """Reference in the search's own condensed form: every assignment's leaf QP (M^N of them)
     solved with the search's engine and the best kept, so no bound or pruning is trusted."""

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from processes.mpfc.footholds import Foothold
 from processes.mpfc.gait import within_height
 from runtime.errors import ConfigError
+from runtime.geometry import Foothold
 from tests.mpfc.test_mpfc_process_gait import _proc
 
 

@@ -1,42 +1,12 @@
-"""Footholds: halfspace form, tilted planes, the stance frame transform and pruning."""
+"""The MPFC's foothold arrays: the stance frame transform, pruning and the height anchor (the
+polygons themselves: tests/runtime/test_foothold_polygons_are_checked_and_round_trip...)."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from processes.mpfc import Foothold
 from processes.mpfc.footholds import WorldFootholds, yaw_rotation
-
-
-def test_from_polygon_contains_interior_points_on_its_plane() -> None:
-    sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
-    fh = Foothold.from_polygon(sq, normal=(0.1, 0.0, 1.0), offset=0.3)
-    p = np.array([0.5, 0.5, 0.0])
-    p[2] = fh.height_at(p[:2])
-    assert np.isclose(p[2], 0.3 - 0.05)
-    assert fh.contains(p)
-    assert not fh.contains(p + np.array([0.0, 0.0, 0.01]))  # off the plane
-    assert not fh.contains(np.array([1.2, 0.5, fh.height_at([1.2, 0.5])]))
-    assert np.allclose(np.linalg.norm(fh.A, axis=1), 1.0)  # (20) needs unit rows
-
-
-def test_general_halfspaces_project_to_the_right_polygon() -> None:
-    """A tilted wall (non-zero z in A) is eliminated through the plane correctly."""
-    # plane z = 0.5 x; the wall x + z <= 1.5 becomes 1.5 x <= 1.5 on the plane
-    a = np.array([[1.0, 0, 1.0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0]])
-    b = np.array([1.5, 0.0, 1.0, 0.0])
-    fh = Foothold(a, b, normal=np.array([-0.5, 0.0, 1.0]), offset=0.0)
-    v = fh.vertices_xy
-    assert np.isclose(v[:, 0].max(), 1.0) and np.isclose(v[:, 0].min(), 0.0)
-    assert len(v) == 4
-
-
-def test_degenerate_input_is_rejected() -> None:
-    with pytest.raises(ValueError):
-        Foothold.from_polygon(np.array([[0, 0], [1, 1]], dtype=float))
-    with pytest.raises(ValueError):
-        Foothold(np.eye(3), np.ones(3), normal=np.zeros(3), offset=0.0)
+from runtime.geometry import Foothold
 
 
 def test_local_frame_rotates_and_translates_consistently() -> None:

@@ -53,7 +53,7 @@ def test_plan_satisfies_dynamics_timing_torque_crossover_and_footholds(params) -
 def test_nominal_walk_on_open_ground_steps_at_the_nominal_width(params) -> None:
     """On one big flat foothold at the nominal orbit, the plan is the nominal gait: the
     lateral step is about the step width l, duration nominal, ankle torque small."""
-    from processes.mpfc import Foothold
+    from runtime.geometry import Foothold
 
     solver = MpfcSolver(params)
     model = solver.model

@@ -8,7 +8,8 @@ import piqp
 import pytest
 from mpfc_test_helpers import solve, with_params
 
-from processes.mpfc import Foothold, MpfcSolver
+from processes.mpfc import MpfcSolver
+from runtime.geometry import Foothold
 from tools.testbed.mpfc_instances import random_instance
 
 

@@ -16,9 +16,9 @@ from processes.s3.decomposition import (
     convex_hull,
     depth_inside,
     make_cut,
-    signed_area,
     whittle,
 )
+from runtime.geometry import signed_area
 
 RES = 0.025
 

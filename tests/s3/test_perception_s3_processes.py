@@ -59,7 +59,8 @@ def test_depth_frames_become_footholds_on_stair_treads(tmp_path):
 def test_bad_maps_give_status_and_no_crash():
     from lcmtypes import elevation_map_t
     from processes.s3.params import S3Params
-    from processes.s3.process import S3Node, decode_layers
+    from processes.s3.process import S3Node
+    from runtime.codecs import elevation_map_from_msg
 
     node = S3Node(S3Params())
     out: list = []
@@ -76,7 +77,7 @@ def test_bad_maps_give_status_and_no_crash():
         msg.data, msg.num_bytes = data, len(data)
         inbox = type("I", (), {"trigger": lambda self, m=msg: m})()
         node.tick(ctx, inbox)
-        assert isinstance(decode_layers(msg), (str, dict))
+        assert isinstance(elevation_map_from_msg(msg), (str, dict))
     assert [m.num_footholds for m in out] == [0, 0, 0]
     assert all(m.status_text for m in out)
     assert out[0].status_text.startswith("bad input") and out[1].status_text.startswith("bad")

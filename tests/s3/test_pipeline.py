@@ -1,4 +1,4 @@
-"""S3 pipeline end to end: plane fits, foothold halfspaces, bad input, IoU metrics, config."""
+"""S3 pipeline end to end: plane fits, bad input, IoU metrics, config."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from processes.s3 import S3Params, S3Pipeline
 from processes.s3 import synthetic as syn
 from processes.s3.metrics import coverage_mask, frame_iou
-from processes.s3.planes import fit_planes, prism_halfspaces
+from processes.s3.planes import fit_planes
 from runtime.errors import ConfigError
 from runtime.params import load
 
@@ -40,7 +40,7 @@ def test_planes_fit_a_tilted_surface(slope: tuple[float, float]) -> None:
     assert np.degrees(np.arccos(np.clip(f.normal @ truth, -1, 1))) < 0.5
     verts = f.vertices
     assert np.allclose(verts[:, 2], z0 + sx * verts[:, 0] + sy * verts[:, 1], atol=0.005)
-    assert f.rms_m < 0.004
+    assert result.plane_rms_m[0] < 0.004
 
 
 def test_planes_are_fitted_per_polygon_on_stairs() -> None:
@@ -63,18 +63,6 @@ def test_fit_planes_handles_several_disjoint_polygons_at_once() -> None:
     assert np.allclose(n[0], [0, 0, 1]) and d[0] == pytest.approx(0.0, abs=1e-9)
     assert n[1] @ np.array([-0.1, 0, 1]) / np.linalg.norm([-0.1, 0, 1]) == pytest.approx(1.0)
     assert np.all(rms < 1e-6)
-
-
-def test_foothold_halfspaces_describe_the_polygon_prism() -> None:
-    poly = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 1.0]])
-    a, b = prism_halfspaces(poly)
-    assert a.shape == (4, 3) and np.allclose(a[:, 2], 0)
-    assert np.allclose(np.linalg.norm(a, axis=1), 1)
-    assert np.all(a @ np.array([0.5, 0.5, 7.0]) <= b)          # any height: a prism
-    assert np.any(a @ np.array([0.5, 1.6, 0.0]) > b)           # above the slanted edge
-    assert np.any(a @ np.array([-0.1, 0.5, 0.0]) > b)          # left of x = 0
-    corners = np.column_stack((poly, np.zeros(4)))
-    assert np.all(a @ corners.T <= b[:, None] + 1e-12)         # corners on the boundary
 
 
 def test_empty_map_gives_no_footholds_and_says_so() -> None:

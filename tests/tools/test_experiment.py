@@ -7,7 +7,7 @@ import pytest
 
 from lcmtypes import ground_truth_t
 from runtime.config import HW_CONFIG_DIR
-from sim.terrain import Foothold
+from runtime.geometry import Foothold
 from tools.experiment import Judge, run_trial
 from tools.experiment import main as experiment_main
 
@@ -22,8 +22,8 @@ def _gt(t: float, x: float, z: float, contact: tuple[bool, bool], feet) -> groun
 
 
 def test_judge_counts_falls_distance_and_footsteps_outside_footholds():
-    square = np.array([[0, -0.5, 0], [1, -0.5, 0], [1, 0.5, 0], [0, 0.5, 0]], dtype=float)
-    judge = Judge([Foothold(vertices=square)], walk_start_s=0.0)
+    square = np.array([[0, -0.5], [1, -0.5], [1, 0.5], [0, 0.5]], dtype=float)
+    judge = Judge([Foothold.from_ccw(square, (0.0, 0.0, 1.0), 0.0)], walk_start_s=0.0)
     feet_in = [(0.2, 0.1, 0.0), (0.2, -0.1, 0.0)]
     judge(0, _gt(0.0, 0.0, 0.95, (True, True), feet_in))
     judge(0, _gt(0.5, 0.2, 0.95, (True, False), feet_in))  # right foot lifts

@@ -7,7 +7,13 @@ from __future__ import annotations
 import numpy as np
 
 from runtime.config import HW_CONFIG_DIR
-from sim.terrain import Box, Foothold, eroded_foothold, load_terrain
+from runtime.geometry import Foothold
+from sim.terrain import Box, load_terrain
+
+
+def _top_face(box: Box) -> Foothold:
+    """The box's whole top face as a foothold."""
+    return Foothold.from_ccw(box.top_corners()[:, :2], (0.0, 0.0, 1.0), box.top_z)
 
 
 def test_a_foot_centred_in_a_stairs_foothold_stands_wholly_on_its_step():
@@ -27,17 +33,17 @@ def test_a_foot_centred_in_a_stairs_foothold_stands_wholly_on_its_step():
 
 
 def test_erosion_is_per_axis_and_drops_faces_too_small_for_the_foot():
-    face = Foothold(Box((0.0, 0.0, -0.5), (0.4, 0.3, 1.0)).top_corners())
-    small = eroded_foothold(face, 0.1, 0.02)
+    face = _top_face(Box((0.0, 0.0, -0.5), (0.4, 0.3, 1.0)))
+    small = face.eroded(0.1, 0.02)
     assert small is not None
     v = small.vertices
     np.testing.assert_allclose([v[:, 0].min(), v[:, 0].max()], [-0.1, 0.1])
     np.testing.assert_allclose([v[:, 1].min(), v[:, 1].max()], [-0.13, 0.13])
     np.testing.assert_allclose(v[:, 2], 0.0)
-    assert eroded_foothold(face, 0.21, 0.0) is None
+    assert face.eroded(0.21, 0.0) is None
     # a yawed face: every corner of the foot at every foothold corner stays inside
-    yawed = Foothold(Box((1.0, 0.5, -0.5), (0.5, 0.4, 1.0), yaw=0.4).top_corners())
-    er = eroded_foothold(yawed, 0.1, 0.02)
+    yawed = _top_face(Box((1.0, 0.5, -0.5), (0.5, 0.4, 1.0), yaw=0.4))
+    er = yawed.eroded(0.1, 0.02)
     assert er is not None
     for x, y, _ in er.vertices:
         for dx in (-0.1, 0.1):

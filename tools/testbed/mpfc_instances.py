@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from processes.mpfc.footholds import Foothold
 from processes.mpfc.problem import MpfcModel
 from processes.mpfc.solver import Instance
+from runtime.geometry import Foothold
 
 
 def random_polygon(rng: np.random.Generator, centre: np.ndarray, size: np.ndarray) -> np.ndarray:

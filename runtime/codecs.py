@@ -1,0 +1,127 @@
+"""One codec per message that carries geometry: footholds and elevation maps <-> LCM messages.
+
+``foothold_set_t`` (S3's FOOTHOLDS, or the sim's ground truth of its terrain) carries each
+convex foothold as its plane, its half-spaces and its corners (``runtime.geometry``);
+``elevation_map_t`` (perception's ELEVATION_MAP) carries named float32 layers of one grid.
+Each message has here the one function that builds it, the one that reads it back and the
+check of its own consistency that the runners' edge validation applies to every input
+(``runtime.validate``): a message that passes the check always decodes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from lcmtypes import elevation_map_t, foothold_set_t, foothold_t
+
+from .geometry import Foothold
+
+#: ``foothold_set_t.status``
+FOOTHOLDS_OK, FOOTHOLDS_PREVIOUS, FOOTHOLDS_EMPTY = 0, 1, 2
+#: ``elevation_map_t.status``
+MAP_OK, MAP_STALE, MAP_NO_DATA = 0, 1, 2
+
+
+def footholds_to_msg(footholds: Iterable[Foothold], utime: int = 0, map_seq: int = -1,
+                     status_text: str = "", previous: bool = False) -> foothold_set_t:
+    """A foothold set (world frame) stamped with ``utime`` and the map it came from
+    (``map_seq``, -1 for none); status: previous set kept, else ok or empty."""
+    out = foothold_set_t()
+    out.header.utime = utime
+    out.map_seq = map_seq
+    for f in footholds:
+        m = foothold_t()
+        m.normal = f.normal.tolist()
+        m.offset = float(f.offset)
+        m.num_halfspaces = len(f.b)
+        m.A = f.A.tolist()
+        m.b = f.b.tolist()
+        verts = f.vertices
+        m.num_vertices = len(verts)
+        m.vertices = verts.tolist()
+        out.footholds.append(m)
+    out.num_footholds = len(out.footholds)
+    if previous:
+        out.status = FOOTHOLDS_PREVIOUS
+    else:
+        out.status = FOOTHOLDS_OK if out.num_footholds else FOOTHOLDS_EMPTY
+    out.status_text = status_text
+    return out
+
+
+def footholds_from_msg(msg: foothold_set_t) -> list[Foothold]:
+    """The set's footholds, from their planes and half-spaces (rows and normal scaled to unit
+    length); a malformed polygon is skipped, not raised, so one bad polygon costs only itself."""
+    out = []
+    for f in msg.footholds[: msg.num_footholds]:
+        try:
+            out.append(Foothold(np.asarray(f.A, dtype=float), np.asarray(f.b, dtype=float),
+                                np.asarray(f.normal, dtype=float), float(f.offset)))
+        except ValueError:
+            continue
+    return out
+
+
+def foothold_set_problem(m: Any) -> str | None:
+    """Why a foothold set is inconsistent (a polygon's half-spaces incomplete, its normal no
+    direction), or None."""
+    for k, f in enumerate(m.footholds):
+        if len(f.b) != len(f.A) or len(f.A) < 3:
+            return f"foothold {k} with {len(f.A)} half-space rows and {len(f.b)} offsets"
+        if sum(x * x for x in f.normal) < 0.25:
+            return f"foothold {k} with a normal of length < 0.5"
+    return None
+
+
+def elevation_map_to_msg(layers: Mapping[str, np.ndarray], resolution: float,
+                         origin_xy: Sequence[float], utime: int = 0, status: int = MAP_OK,
+                         status_text: str = "") -> elevation_map_t:
+    """A map of named layers on one grid (rows along y; cell (0, 0) centred on ``origin_xy``),
+    in the order given, as float32 little-endian."""
+    shapes = {np.shape(g) for g in layers.values()}
+    if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+        raise ValueError(f"an elevation map needs 2D layers of one shape, got {sorted(shapes)}")
+    msg = elevation_map_t()
+    msg.header.utime = utime
+    msg.resolution = float(resolution)
+    msg.rows, msg.cols = next(iter(shapes))
+    msg.origin = [float(origin_xy[0]), float(origin_xy[1])]
+    names = list(layers)
+    msg.num_layers = len(names)
+    msg.layer_names = names
+    data = b"".join(np.ascontiguousarray(layers[n], dtype="<f4").tobytes() for n in names)
+    msg.num_bytes = len(data)
+    msg.data = data
+    msg.status = status
+    msg.status_text = status_text
+    return msg
+
+
+def elevation_map_from_msg(msg: elevation_map_t) -> dict[str, np.ndarray] | str:
+    """The map's layers by name, (rows, cols) float32 views of its bytes, or why it has none."""
+    why = elevation_map_problem(msg)
+    if why is not None:
+        return why
+    cells = msg.rows * msg.cols
+    flat = np.frombuffer(msg.data, dtype="<f4")
+    return {name: flat[i * cells : (i + 1) * cells].reshape(msg.rows, msg.cols)
+            for i, name in enumerate(msg.layer_names)}
+
+
+def elevation_map_problem(m: Any) -> str | None:
+    """Why an elevation map's grid, layers and bytes disagree (``elevation_map_t``'s own
+    comment), or None."""
+    if m.rows <= 0 or m.cols <= 0:
+        return f"an elevation map of {m.rows} x {m.cols} cells"
+    if not m.resolution > 0.0:
+        return f"an elevation map with resolution {m.resolution}"
+    if m.num_layers != len(m.layer_names) or m.num_layers <= 0:
+        return f"an elevation map with {m.num_layers} layers named {len(m.layer_names)}"
+    want = 4 * m.rows * m.cols * m.num_layers
+    if len(m.data) != want:
+        return (f"an elevation map of {len(m.data)} data bytes where {m.rows} x {m.cols} "
+                f"cells x {m.num_layers} layers of float32 make {want}")
+    return None
