@@ -125,3 +125,28 @@ def elevation_map_problem(m: Any) -> str | None:
         return (f"an elevation map of {len(m.data)} data bytes where {m.rows} x {m.cols} "
                 f"cells x {m.num_layers} layers of float32 make {want}")
     return None
+
+
+# -- robot_state_t: the fields the torque bridge reads without decoding ------------------------
+def packet_seq_of(state: Any) -> int:
+    """The target PC packet ``seq`` a robot_state_t was estimated from (for the torque's
+    ``ack``)."""
+    return int(state.packet_seq) & 0xFF
+
+
+#: robot_state_t's last fields (packet_seq int32, packets_lost int64, packets_rejected int64)
+#: have a fixed size, so packet_seq is a big-endian int32 this many bytes from the end of an
+#: encoded state, whatever the lengths of the arrays and strings before it
+#: (tests/state_estimator prove it against lcm-gen's encoding)
+PACKET_SEQ_FROM_END = 4 + 8 + 8
+
+
+def raw_utime_and_seq(data: bytes) -> tuple[int, int] | None:
+    """``(header.utime, packet_seq & 0xFF)`` of an encoded robot_state_t, read from its bytes
+    without decoding it (lcm-gen: fingerprint, then header.utime first); None when it is too
+    short to hold them. Unchecked: a caller that acts on more than an ack decodes it."""
+    if len(data) < 16 + PACKET_SEQ_FROM_END:
+        return None
+    utime = int.from_bytes(data[8:16], "big", signed=True)
+    end = len(data) - PACKET_SEQ_FROM_END
+    return utime, data[end + 3]  # the low byte of the big-endian int32

@@ -46,29 +46,6 @@ MAX_CARRY_OVER_US = 50_000
 log = logging.getLogger(__name__)
 
 
-def packet_seq_of(state: robot_state_t) -> int:
-    """The target PC packet ``seq`` a state was estimated from (for the torque's ``ack``)."""
-    return int(state.packet_seq) & 0xFF
-
-
-#: robot_state_t's last fields (packet_seq int32, packets_lost int64, packets_rejected int64)
-#: have a fixed size, so packet_seq is a big-endian int32 this many bytes from the end of an
-#: encoded state, whatever the lengths of the arrays and strings before it
-#: (tests/state_estimator prove it against lcm-gen's encoding)
-PACKET_SEQ_FROM_END = 4 + 8 + 8
-
-
-def raw_utime_and_seq(data: bytes) -> tuple[int, int] | None:
-    """``(header.utime, packet_seq & 0xFF)`` of an encoded robot_state_t, read from its bytes
-    without decoding it (lcm-gen: fingerprint, then header.utime first); None when it is too
-    short to hold them. Unchecked: a caller that acts on more than an ack decodes it."""
-    if len(data) < 16 + PACKET_SEQ_FROM_END:
-        return None
-    utime = int.from_bytes(data[8:16], "big", signed=True)
-    end = len(data) - PACKET_SEQ_FROM_END
-    return utime, data[end + 3]  # the low byte of the big-endian int32
-
-
 class StateEstimatorNode(Node):
     """UDP robot output in; robot state (2 kHz and 200 Hz) and contact out."""
 

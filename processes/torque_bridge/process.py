@@ -30,7 +30,6 @@ import mujoco
 import numpy as np
 
 from lcmtypes import applied_input_t, robot_state_t, torque_command_t
-from processes.state_estimator.process import packet_seq_of, raw_utime_and_seq
 from runtime.cassie_packets import (
     FLAG_RELEASE_HOLDER,
     MOTOR_NAMES,
@@ -38,6 +37,7 @@ from runtime.cassie_packets import (
     InputPacket,
     LinkCounter,
 )
+from runtime.codecs import packet_seq_of, raw_utime_and_seq
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Context, Inbox, Node
 from runtime.pairing import link_token

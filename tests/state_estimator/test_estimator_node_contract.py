@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from processes.state_estimator.estimator import RESTART_AFTER, STATUS_INITIALIZING
-from processes.state_estimator.process import StateEstimatorNode, packet_seq_of
+from processes.state_estimator.process import StateEstimatorNode
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
+from runtime.codecs import packet_seq_of
 from runtime.harness import Binding, Harness
 from tests.state_estimator.scripted import sim_settings
 
