@@ -64,7 +64,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="multiply every per-channel buffer size (see tools/dashboard/channels.py)",
     )
     p.add_argument("--terrain", default=None, help="terrain to draw (name or YAML file)")
-    p.add_argument("--no-skeleton", action="store_true", help="skip the MuJoCo leg skeleton")
+    p.add_argument("--no-skeleton", action="store_true",
+                   help="skip the MuJoCo model (pelvis pose and feet only)")
+    p.add_argument("--no-meshes", action="store_true",
+                   help="draw the legs as a stick skeleton instead of the model's meshes")
     p.add_argument("--nice", type=int, default=10, help="niceness increment (default 10)")
     return p
 
@@ -134,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     from tools.dashboard.channels import resolve_setup
     from tools.dashboard.collector import Collector
     from tools.dashboard.convert import Batcher
-    from tools.dashboard.robot import load_skeleton
+    from tools.dashboard.robot import load_skeleton, log_meshes
     from tools.dashboard.terrain import find_terrain, log_terrain
 
     setup = resolve_setup(args.profile)
@@ -152,10 +155,13 @@ def main(argv: list[str] | None = None) -> int:
         channel_domains=prof.channel_domains if prof is not None else None,
     )
     collector.start()  # listen first: the model and viewer set-up below take a second or two
+    # (the model before the layout: whether the meshes loaded decides what the 3D view shows)
+    skeleton = None if args.no_skeleton else load_skeleton(meshes=not args.no_meshes)
+    meshes = skeleton is not None and skeleton.has_meshes
     try:
         loops = ([(n, n, prof.processes[n].deadline_ms) for n in prof.launch]
                  if prof is not None else None)
-        rec = _open_recording(args, build_blueprint(loops=loops))
+        rec = _open_recording(args, build_blueprint(loops=loops, robot_meshes=meshes))
     except (RuntimeError, OSError) as exc:
         collector.stop()
         print(f"dashboard: cannot open the Rerun output: {exc}", file=sys.stderr)
@@ -164,7 +170,8 @@ def main(argv: list[str] | None = None) -> int:
     terrain = find_terrain(setup.profile, args.terrain)
     if terrain is not None:
         log_terrain(rec, terrain)
-    skeleton = None if args.no_skeleton else load_skeleton()
+    if meshes and skeleton is not None:
+        log_meshes(rec, skeleton)  # once, static: per frame only the body poses are sent
     batcher = Batcher(
         rec,
         setup.channels,

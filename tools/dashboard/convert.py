@@ -40,10 +40,11 @@ from lcmtypes import (
     supervisor_status_t,
     torque_command_t,
 )
+from runtime.codecs import elevation_map_from_msg
 from tools.dashboard.channels import Channels
 from tools.dashboard.collector import ChannelStats
 from tools.dashboard.hops import KeyTable, hop_latency_ms
-from tools.dashboard.robot import Skeleton
+from tools.dashboard.robot import FRAMES_ENTITY, LEG_CHAIN, WORLD_FRAME, Pose, Skeleton
 from tools.dashboard.wire import Headers, fingerprint, read_headers
 
 #: the span over which a loop's rate is taken from its TIMING reports (seconds)
@@ -183,6 +184,67 @@ class _Times:
         return self.times
 
 
+class _Column:
+    """A component column (``rr.ComponentColumn``-like) from a prebuilt arrow array: the
+    SDK's ``Transform3D.columns``, ``Points3D.columns`` and ``LineStrips3D.columns`` take
+    ~0.2 ms a call, more than the send itself, and every robot frame needs four."""
+
+    def __init__(self, descriptor: Any, array: pa.Array) -> None:
+        self.descriptor = descriptor
+        self.array = array
+
+    def component_descriptor(self) -> Any:
+        return self.descriptor
+
+    def as_arrow_array(self) -> pa.Array:
+        return self.array
+
+
+def _template(columns: Any) -> tuple[dict[str, Any], dict[str, pa.DataType]]:
+    """Component descriptors and arrow types by field name, from one ``Archetype.columns``
+    call made once (so they follow the SDK's version)."""
+    by_field = {c.component_descriptor().component.split(":")[-1]: c for c in columns}
+    return ({k: c.component_descriptor() for k, c in by_field.items()},
+            {k: c.as_arrow_array().type for k, c in by_field.items()})
+
+
+_T3D, _T3D_TYPES = _template(rr.Transform3D.columns(
+    translation=np.zeros((1, 3)), quaternion=[[0.0, 0.0, 0.0, 1.0]], child_frame=["a"],
+    parent_frame=["b"]))
+_P3D, _P3D_TYPES = _template(rr.Points3D.columns(positions=np.zeros((1, 3))))
+_L3D, _L3D_TYPES = _template(rr.LineStrips3D.columns(strips=[np.zeros((2, 3))]))
+_STRIP_POINT = _L3D_TYPES["strips"].value_type.value_type  # a strip's point: 3 float32
+
+
+def _offsets(n: int, per_row: int = 1) -> pa.Array:
+    """List offsets of ``n`` rows of ``per_row`` values each."""
+    return pa.array(np.arange(0, n * per_row + 1, per_row, dtype=np.int32))
+
+
+def _vec_list(values: np.ndarray, list_type: pa.DataType, per_row: int = 1) -> pa.Array:
+    """Fixed-size float32 vectors, ``per_row`` to a row, as a column of ``list_type``."""
+    flat = pa.array(np.ascontiguousarray(values, np.float32).reshape(-1))
+    inner = pa.FixedSizeListArray.from_arrays(flat, type=list_type.value_type)
+    return pa.ListArray.from_arrays(_offsets(len(values) // per_row, per_row), inner,
+                                    type=list_type)
+
+
+def _string_list(values: list[str], list_type: pa.DataType) -> pa.Array:
+    """A list-of-one-string column of ``list_type`` (child and parent frame names)."""
+    return pa.ListArray.from_arrays(_offsets(len(values)), pa.array(values, pa.string()),
+                                    type=list_type)
+
+
+def _legs_column(legs: list[np.ndarray]) -> _Column:
+    """One row per frame of two strips (left, right leg) of ``len(LEG_CHAIN) + 1`` points."""
+    pts = np.concatenate([pair.reshape(-1, 3) for pair in legs]).astype(np.float32)
+    inner = pa.FixedSizeListArray.from_arrays(pa.array(pts.reshape(-1)), type=_STRIP_POINT)
+    strips = pa.ListArray.from_arrays(_offsets(2 * len(legs), len(LEG_CHAIN) + 1), inner,
+                                      type=_L3D_TYPES["strips"].value_type)
+    rows = pa.ListArray.from_arrays(_offsets(len(legs), 2), strips, type=_L3D_TYPES["strips"])
+    return _Column(_L3D["strips"], rows)
+
+
 class Batcher:
     """Converts batches of raw messages to Rerun columns and sends them on ``rec``."""
 
@@ -200,6 +262,8 @@ class Batcher:
         self.rec = rec
         self.ch = channels
         self.skeleton = skeleton
+        #: rows per send -> the body-frame name columns (``_send_body_frames``)
+        self._frame_columns: dict[int, tuple[_Column, _Column]] = {}
         self.robot_period_us = int(1e6 / robot_hz)
         self.map_period_s = 1.0 / map_hz
         self.points_per_s = points_per_s
@@ -312,9 +376,12 @@ class Batcher:
 
     def send(self, path: str, sim_us: Any, wall_ns: Any, columns: Any) -> None:
         """One ``send_columns`` call for ``path``."""
-        rr.send_columns(
-            path, indexes=self._indexes(sim_us, wall_ns), columns=columns, recording=self.rec
-        )
+        self.send_at(path, self._indexes(sim_us, wall_ns), columns)
+
+    def send_at(self, path: str, indexes: list[_Times], columns: Any) -> None:
+        """One ``send_columns`` call for ``path`` on prebuilt time columns (the robot's four
+        entities share theirs: building them costs ~20 us a send)."""
+        rr.send_columns(path, indexes=indexes, columns=columns, recording=self.rec)
 
     def scalar(self, path: str, sim_us: np.ndarray, wall_ns: np.ndarray, values: Any) -> None:
         """Queue scalar rows for ``path``; sent (reduced) at the next flush."""
@@ -379,34 +446,52 @@ class Batcher:
     # -- robot -------------------------------------------------------------------------------
     def _send_robot(self, sim: np.ndarray, wall: np.ndarray, qs: list[np.ndarray],
                     feet: list[np.ndarray] | None) -> None:
-        """Pelvis pose, leg skeleton (when the model is loaded) and feet, one row per q."""
+        """Pelvis pose, the meshed bodies' poses (when the meshes are loaded), the leg chains
+        (with the model) and feet, one row per q."""
         q = np.stack(qs)
-        quat_wxyz = q[:, 3:7]
-        self.send(
-            "world/robot/pelvis",
-            sim,
-            wall,
-            rr.Transform3D.columns(translation=q[:, 0:3], quaternion=quat_wxyz[:, [1, 2, 3, 0]]),
-        )
+        at = self._indexes(sim, wall)
+        self.send_at("world/robot/pelvis", at, [
+            _Column(_T3D["translation"], _vec_list(q[:, 0:3], _T3D_TYPES["translation"])),
+            _Column(_T3D["quaternion"], _vec_list(q[:, [4, 5, 6, 3]], _T3D_TYPES["quaternion"])),
+        ])
+        sk = self.skeleton
         legs: list[np.ndarray] = []
-        if self.skeleton is not None and q.shape[1] == self.skeleton.nq:
-            legs = [self.skeleton.legs(qi) for qi in q]
-            strips = [leg for pair in legs for leg in pair]
-            self.send(
-                "world/robot/legs",
-                sim,
-                wall,
-                rr.LineStrips3D.columns(strips=strips).partition([2] * len(legs)),
-            )
+        if sk is not None and q.shape[1] == sk.nq:
+            poses = [sk.pose(qi) for qi in q]
+            legs = [p.legs for p in poses]
+            if sk.has_meshes:
+                self._send_body_frames(sim, wall, poses)
+            # the leg chains too (one send; hidden in the 3D view when the meshes are drawn)
+            self.send_at("world/robot/legs", at, [_legs_column(legs)])
         if feet is None and legs:
             feet = [pair[:, -1, :] for pair in legs]
         if feet:
-            self.send(
-                "world/robot/feet",
-                sim,
-                wall,
-                rr.Points3D.columns(positions=np.concatenate(feet)).partition([2] * len(feet)),
+            self.send_at("world/robot/feet", at, [_Column(
+                _P3D["positions"], _vec_list(np.concatenate(feet), _P3D_TYPES["positions"], 2))])
+
+    def _send_body_frames(self, sim: np.ndarray, wall: np.ndarray, poses: list[Pose]) -> None:
+        """Every meshed body's world pose, one Transform3D row per body and frame, in one
+        send: each row names the body's frame (the static meshes live in it)."""
+        sk = self.skeleton
+        assert sk is not None
+        nb = len(sk.frames)
+        n = len(poses) * nb
+        frames = self._frame_columns.get(n)
+        if frames is None:  # the same strings every frame: built once per batch size
+            frames = (
+                _Column(_T3D["child_frame"],
+                        _string_list(sk.frames * len(poses), _T3D_TYPES["child_frame"])),
+                _Column(_T3D["parent_frame"],
+                        _string_list([WORLD_FRAME] * n, _T3D_TYPES["parent_frame"])),
             )
+            self._frame_columns[n] = frames
+        pos = np.concatenate([p.body_pos for p in poses])
+        quat = np.concatenate([p.body_quat for p in poses])
+        self.send_at(FRAMES_ENTITY, self._indexes(np.repeat(sim, nb), np.repeat(wall, nb)), [
+            _Column(_T3D["translation"], _vec_list(pos, _T3D_TYPES["translation"])),
+            _Column(_T3D["quaternion"], _vec_list(quat, _T3D_TYPES["quaternion"])),
+            *frames,
+        ])
 
     def _on_state(self, msgs: list[bytes]) -> None:
         """CASSIE_STATE: hop source; the robot when there is no ground truth, else the
@@ -546,12 +631,11 @@ class Batcher:
 
     def _draw_map(self, m: Any, sim: np.ndarray, wall: np.ndarray) -> None:
         """Elevation image, 3D cells and (from a mask layer, if any) the S3 mask."""
-        rows, cols, n = int(m.rows), int(m.cols), int(m.num_layers)
-        if rows <= 0 or cols <= 0 or n <= 0 or len(m.data) != 4 * rows * cols * n:
-            raise ValueError(f"map of {rows}x{cols}x{n} with {len(m.data)} bytes")
-        layers = np.frombuffer(bytes(m.data), dtype="<f4").reshape(n, rows, cols)
-        names = list(m.layer_names)
-        elev = layers[names.index("elevation")] if "elevation" in names else layers[0]
+        layers = elevation_map_from_msg(m)  # (the one codec: runtime.codecs)
+        if isinstance(layers, str):
+            raise ValueError(layers)
+        rows, cols = int(m.rows), int(m.cols)
+        elev = layers.get("elevation", next(iter(layers.values())))
         origin = np.asarray(m.origin, np.float64)
         res = float(m.resolution)
         self._grid = (origin, res, (rows, cols), elev)
@@ -571,10 +655,10 @@ class Batcher:
                     positions=pts, colors=rgb[ii, jj], radii=np.full(len(pts), 0.5 * res)
                 ).partition([len(pts)]),
             )
-        mask_name = next((x for x in MASK_LAYERS if x in names), None)
+        mask_name = next((x for x in MASK_LAYERS if x in layers), None)
         self._map_has_mask = mask_name is not None
         if mask_name is not None:
-            layer = layers[names.index(mask_name)]
+            layer = layers[mask_name]
             mask = np.where(layer > 0.5, MASK_SAFE, MASK_UNSAFE).astype(np.uint8)
             mask[~np.isfinite(layer) | ~finite] = MASK_UNKNOWN
             self._send_mask(sim, wall, mask)
