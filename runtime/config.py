@@ -232,6 +232,16 @@ class _Checker:
                     allowed=", ".join(sorted(allowed)),
                 )
 
+    def _given(self, d: dict[str, Any], full: str, name: str, default: Any,
+               allowed: str | None = None) -> bool:
+        """Whether ``d`` gives ``name`` (a null counts as absent); absent with no ``default``
+        (``...``) is a ConfigError: ``full`` is required."""
+        if name in d and d[name] is not None:
+            return True
+        if default is ...:
+            raise self.fail(full, "is required", allowed)
+        return False
+
     def number(
         self,
         d: dict[str, Any],
@@ -245,9 +255,7 @@ class _Checker:
         lo_open: bool = False,
     ) -> Any:
         full = f"{key}.{name}" if key else name
-        if name not in d or d[name] is None:
-            if default is ...:
-                raise self.fail(full, "is required")
+        if not self._given(d, full, name, default):
             return default
         v = d[name]
         kind = "an integer" if integer else "a number"
@@ -275,19 +283,12 @@ class _Checker:
         choices: tuple[str, ...] | None = None,
     ) -> Any:
         full = f"{key}.{name}" if key else name
-        if name not in d or d[name] is None:
-            if default is ...:
-                raise self.fail(
-                    full, "is required", allowed=", ".join(choices) if choices else None
-                )
+        allowed = ", ".join(choices) if choices else None
+        if not self._given(d, full, name, default, allowed):
             return default
         v = d[name]
         if not isinstance(v, str) or not v:
-            raise self.fail(
-                full,
-                f"must be a non-empty string, got {v!r}",
-                allowed=", ".join(choices) if choices else None,
-            )
+            raise self.fail(full, f"must be a non-empty string, got {v!r}", allowed=allowed)
         if choices is not None and v not in choices:
             raise self.fail(
                 full, f"{v!r} is not one of the allowed values", allowed=", ".join(choices)

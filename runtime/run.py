@@ -222,8 +222,8 @@ def _started(proc: object, profile: object) -> None:
     bus.close()
 
 
-def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m runtime.run", description=__doc__.split("\n")[0])
+def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """The arguments of one process's run (``python -m runtime.run`` and ``cassie run``)."""
     p.add_argument("process")
     p.add_argument("--profile", required=True)
     p.add_argument("--duration", type=float, default=None)
@@ -231,6 +231,11 @@ def parser() -> argparse.ArgumentParser:
                    help="set up, then wait for `go` on stdin before running (the "
                         "supervisor's spare for restart.standby)")
     return p
+
+
+def parser() -> argparse.ArgumentParser:
+    return add_arguments(argparse.ArgumentParser(prog="python -m runtime.run",
+                                                 description=__doc__.split("\n")[0]))
 
 
 def main(argv: list[str] | None = None) -> int:

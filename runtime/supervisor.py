@@ -43,7 +43,7 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import psutil
 
@@ -313,11 +313,16 @@ class Supervisor:
         if n in (1, 10, 100) or n % 1000 == 0:
             self.out.write(f"ignored {what} #{n}: {why}\n")
 
-    def _on_timing(self, _channel: str, data: bytes) -> None:
+    def _decoded(self, msg_type: Any, data: bytes, what: str) -> Any | None:
+        """``data`` as a ``msg_type``, or None when it is malformed (refused as ``what``)."""
         try:
-            msg = loop_timing_t.decode(data)
+            return msg_type.decode(data)
         except Exception as exc:
-            self.refuse("TIMING", f"malformed ({type(exc).__name__})")
+            self.refuse(what, f"malformed ({type(exc).__name__})")
+            return None
+
+    def _on_timing(self, _channel: str, data: bytes) -> None:
+        if (msg := self._decoded(loop_timing_t, data, "TIMING")) is None:
             return
         child = self.children.get(msg.process)
         if child is None and self.host_only and msg.process in self.profile.processes:
@@ -351,10 +356,7 @@ class Supervisor:
             self.out.write(f"{child.proc.name} reports a fault: {msg.status}\n")
 
     def _on_order(self, _channel: str, data: bytes) -> None:
-        try:
-            msg = supervisor_orders_t.decode(data)
-        except Exception as exc:
-            self.refuse("order", f"malformed ({type(exc).__name__})")
+        if (msg := self._decoded(supervisor_orders_t, data, "order")) is None:
             return
         if msg.order not in ORDERS:
             self.refuse("order", f"unknown order {msg.order!r} (known: {', '.join(ORDERS)})")

@@ -56,11 +56,13 @@ def profile_bus(profile: str | Path, source: str = "test") -> Any:
 
 
 def one_process_profile(tmp_path: Path, name: str, params: dict[str, Any] | None = None,
-                        gains: Callable[[dict[str, Any]], object] | None = None) -> Path:
-    """A profile file in ``tmp_path`` running only ``name`` of hw_config/processes.yaml, its
-    ``params:`` replaced by ``params`` (None: as there) and its gains file a copy of the
-    shipped one in ``tmp_path/gains.yaml``, first changed by ``gains(doc)``. Load it with
-    ``runtime.config.load_profile`` and build with ``runtime.builder.build_node``."""
+                        gains: Callable[[dict[str, Any]], object] | None = None,
+                        mode: str = "realtime") -> Path:
+    """A profile file in ``tmp_path`` (``one.yaml``, in ``mode``) running only ``name`` of
+    hw_config/processes.yaml, its ``params:`` replaced by ``params`` (None: as there) and its
+    gains file a copy of the shipped one in ``tmp_path/gains.yaml``, first changed by
+    ``gains(doc)``. Load it with ``runtime.config.load_profile`` and build with
+    ``runtime.builder.build_node`` (or ``one_process``, ``build_one``, ``config_error``)."""
     import yaml
 
     hw = REPO / "hw_config"
@@ -71,13 +73,57 @@ def one_process_profile(tmp_path: Path, name: str, params: dict[str, Any] | None
     doc = yaml.safe_load((hw / block["gains"]).read_text()) or {}
     if gains is not None:
         gains(doc)
-    (tmp_path / "gains.yaml").write_text(yaml.safe_dump(doc))
+    (tmp_path / "gains.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))  # its order
     block["gains"] = str(tmp_path / "gains.yaml")
     profile = {"profile": "one", "include": [str(hw / "hosts.yaml"), str(hw / "channels.yaml")],
-               "mode": "realtime", "processes": {name: block}, "launch": [name]}
+               "mode": mode, "processes": {name: block}, "launch": [name]}
     path = tmp_path / "one.yaml"
     path.write_text(yaml.safe_dump(profile))
     return path
+
+
+def one_process(tmp_path: Path, name: str, params: dict[str, Any] | None = None,
+                gains: Callable[[dict[str, Any]], object] | None = None,
+                mode: str = "realtime") -> tuple[Any, Any]:
+    """(process config, profile) of ``one_process_profile``'s profile, loaded."""
+    from runtime.config import load_profile
+
+    profile = load_profile(one_process_profile(tmp_path, name, params, gains, mode))
+    return profile.processes[name], profile
+
+
+def build_one(tmp_path: Path, name: str, params: dict[str, Any] | None = None,
+              gains: Callable[[dict[str, Any]], object] | None = None,
+              mode: str = "realtime") -> Any:
+    """``name``'s node, built from ``one_process``'s profile as a run builds it."""
+    from runtime.builder import build_node
+
+    return build_node(*one_process(tmp_path, name, params, gains, mode))
+
+
+def config_error(tmp_path: Path, name: str, params: dict[str, Any] | None = None,
+                 gains: Callable[[dict[str, Any]], object] | None = None,
+                 mode: str = "realtime") -> Any:
+    """The ``ConfigError`` building ``name`` (``build_one``) stops with; the test fails when
+    it builds. Its file is ``tmp_path/one.yaml`` (a param) or ``tmp_path/gains.yaml``."""
+    from runtime.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        build_one(tmp_path, name, params, gains, mode)
+    return err.value
+
+
+def assert_names(err: Any, file: Path, key: str, problem: str, allowed: str | None,
+                 listing: str | None = None) -> None:
+    """``err`` (a ``ConfigError``) names ``file``, the dotted ``key``, a problem that says
+    ``problem``, and ``allowed`` exactly; with ``listing``, an unknown key's (``allowed``
+    None) allowed list -- every field, alphabetically -- has ``listing`` in it."""
+    assert (err.file, err.key) == (str(file), key)
+    assert problem in err.problem
+    if allowed is None and listing is not None:
+        assert err.allowed is not None and listing in err.allowed
+    else:
+        assert err.allowed == allowed
 
 
 def cassie(*args: str, env: dict[str, str] | None = None, **kw: Any) -> subprocess.Popen[str]:

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from runtime.errors import ConfigError, exit_code
+from runtime.run import add_arguments as add_run_arguments
 
 BENCHMARKS = ("sim", "estimator", "mpfc", "osc", "s3", "lcm", "launch", "bridge")
 
@@ -161,13 +162,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="fail instead of making a key when there is none (on a host the "
                              "supervisor's key file must be copied to)")
 
-    run = sub.add_parser("run", help="run one process alone with a profile's settings")
-    run.add_argument("process")
-    run.add_argument("--profile", required=True)
-    run.add_argument("--duration", type=float, default=None)
-    run.add_argument("--standby", action="store_true",
-                     help="set up, then wait for `go` on stdin before running (the "
-                          "supervisor's spare for restart.standby)")
+    add_run_arguments(sub.add_parser("run", help="run one process alone with a profile's "
+                                     "settings"))
 
     # (its own options are the benchmark's: `cassie bench s3 --help` is the s3 benchmark's)
     bench = sub.add_parser("bench", help="a benchmark: " + ", ".join(BENCHMARKS),

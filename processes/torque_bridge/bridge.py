@@ -71,8 +71,16 @@ _LIMIT = {"lo": 0.0, "hi": 1000.0, "lo_open": True, "unit": "N m"}
 _KD = {"lo": 0.0, "hi": 1000.0, "unit": "N m s/rad"}
 
 
+class _PerMotorKind:
+    """A value per motor kind (the fields, named as ``MOTOR_KINDS``), the same on both legs."""
+
+    def per_motor(self) -> tuple[float, ...]:
+        """The 10 motors' values (``MOTOR_NAMES`` order: the left leg, then the right)."""
+        return tuple(float(getattr(self, k)) for k in MOTOR_KINDS) * 2
+
+
 @dataclass(frozen=True)
-class TorqueLimits:
+class TorqueLimits(_PerMotorKind):
     """Joint-side torque limit of each motor kind (both legs), N m; every kind is given."""
 
     hip_roll: float = spec(**_LIMIT)
@@ -81,13 +89,9 @@ class TorqueLimits:
     knee: float = spec(**_LIMIT)
     foot: float = spec(**_LIMIT)
 
-    def per_motor(self) -> tuple[float, ...]:
-        """The 10 motors' values (``MOTOR_NAMES`` order: the left leg, then the right)."""
-        return tuple(float(getattr(self, k)) for k in MOTOR_KINDS) * 2
-
 
 @dataclass(frozen=True)
-class DampingGains:
+class DampingGains(_PerMotorKind):
     """Joint damping of the fallback, per motor kind (both legs), N m s/rad; every kind is
     given."""
 
@@ -96,10 +100,6 @@ class DampingGains:
     hip_pitch: float = spec(**_KD)
     knee: float = spec(**_KD)
     foot: float = spec(**_KD)
-
-    def per_motor(self) -> tuple[float, ...]:
-        """The 10 motors' values (``MOTOR_NAMES`` order: the left leg, then the right)."""
-        return tuple(float(getattr(self, k)) for k in MOTOR_KINDS) * 2
 
 
 @dataclass(frozen=True)

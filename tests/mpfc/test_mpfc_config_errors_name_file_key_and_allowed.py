@@ -7,45 +7,17 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 
 from processes.mpfc.process import Params
-from runtime.builder import build_node, process_module, read_config
-from runtime.config import HW_CONFIG_DIR, load_profile
-from runtime.errors import ConfigError
+from runtime.builder import process_module, read_config
+from runtime.config import HW_CONFIG_DIR
 from runtime.params import load
-
-PROFILE = """\
-include: [{hw}/hosts.yaml, {hw}/channels.yaml]
-mode: lockstep
-processes:
-  mpfc:
-    host: laptop
-    module: processes.mpfc.process
-    inputs: {{state: network_state, footholds: footholds, elevation_map: elevation_map,
-              command: command}}
-    outputs: {{plan: plan, debug: mpfc_debug}}
-    gains: {gains}
-    params: {params}
-launch: [mpfc]
-"""
-
-
-def _proc(tmp_path: Path, params: dict[str, Any], gains: Any = None):  # type: ignore[no-untyped-def]
-    """The profile's mpfc, with a copy of hw_config/gains/mpfc.yaml changed by ``gains``."""
-    doc = yaml.safe_load((HW_CONFIG_DIR / "gains" / "mpfc.yaml").read_text())
-    if gains is not None:
-        gains(doc)
-    gfile = tmp_path / "mpfc.yaml"
-    gfile.write_text(yaml.safe_dump(doc, sort_keys=False))
-    pfile = tmp_path / "profile.yaml"
-    pfile.write_text(PROFILE.format(hw=HW_CONFIG_DIR, gains=gfile, params=params))
-    profile = load_profile(pfile)
-    return profile.processes["mpfc"], profile, pfile, gfile
+from tests.conftest import assert_names, config_error, one_process
 
 
 def test_the_profile_as_written_reads_its_params_and_gains(tmp_path: Path) -> None:
-    proc, _, _, _ = _proc(tmp_path, {"variant": "hardware", "footholds": "flat"})
+    proc, _ = one_process(tmp_path, "mpfc", {"variant": "hardware", "footholds": "flat"},
+                          mode="lockstep")
     params, gains = read_config(proc, process_module(proc))
     assert params == Params(variant="hardware", footholds="flat")
     assert gains == load(type(gains), HW_CONFIG_DIR / "gains" / "mpfc.yaml", "hardware")
@@ -66,11 +38,8 @@ ALL_PARAMS = "default_velocity, foothold_max_height_m, footholds, height_lookup,
 ])
 def test_a_bad_param_names_the_profile_the_key_and_what_is_allowed(
         tmp_path: Path, params: dict[str, Any], key: str, problem: str, allowed: str) -> None:
-    proc, profile, pfile, _ = _proc(tmp_path, params)
-    with pytest.raises(ConfigError) as err:
-        build_node(proc, profile)
-    assert (err.value.file, err.value.key) == (str(pfile), f"processes.mpfc.params.{key}")
-    assert problem in err.value.problem and err.value.allowed == allowed
+    err = config_error(tmp_path, "mpfc", params, mode="lockstep")
+    assert_names(err, tmp_path / "one.yaml", f"processes.mpfc.params.{key}", problem, allowed)
 
 
 @pytest.mark.parametrize(("variant", "change", "key", "problem", "allowed"), [
@@ -87,12 +56,5 @@ def test_a_bad_param_names_the_profile_the_key_and_what_is_allowed(
 def test_a_bad_gain_names_the_gains_file_the_key_and_what_is_allowed(
         tmp_path: Path, variant: str, change: Any, key: str, problem: str,
         allowed: str | None) -> None:
-    proc, profile, _, gfile = _proc(tmp_path, {"variant": variant}, change)
-    with pytest.raises(ConfigError) as err:
-        build_node(proc, profile)
-    assert (err.value.file, err.value.key) == (str(gfile), key)
-    assert problem in err.value.problem
-    if allowed is None:  # an unknown key: every field of the gains, alphabetically
-        assert err.value.allowed is not None and "horizon_steps" in err.value.allowed
-    else:
-        assert err.value.allowed == allowed
+    err = config_error(tmp_path, "mpfc", {"variant": variant}, change, mode="lockstep")
+    assert_names(err, tmp_path / "gains.yaml", key, problem, allowed, listing="horizon_steps")

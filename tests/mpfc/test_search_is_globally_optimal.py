@@ -7,10 +7,9 @@ import numpy as np
 import pytest
 from mpfc_test_helpers import (
     exhaustive_search,
-    objective_matches,
-    reference,
     rel_err,
     solve,
+    solve_exactly,
     with_params,
 )
 
@@ -30,9 +29,7 @@ def test_enumeration_matches_exhaustive_reference(params, m) -> None:
     for _ in range(3):
         inst = random_instance(rng, solver.model, m)
         solver.reset()
-        sol = solve(solver, inst)
-        ref, _ = reference(solver)
-        assert objective_matches(sol, ref), (sol.status, sol.objective, ref)
+        sol = solve_exactly(solver, inst)
         if sol.has_plan:
             # the plan really lies in the chosen footholds
             for k, i in enumerate(sol.foothold_indices):
@@ -45,9 +42,7 @@ def test_branch_and_bound_matches_exhaustive_reference(params, m) -> None:
     rng = np.random.default_rng(200 + m)
     for _ in range(2):
         inst = random_instance(rng, solver.model, m)
-        sol = solve(solver, inst)
-        ref, _ = reference(solver)
-        assert objective_matches(sol, ref), (sol.status, sol.objective, ref)
+        solve_exactly(solver, inst)
 
 
 @pytest.mark.parametrize("search", ["enumerate", "branch_and_bound"])
@@ -58,9 +53,7 @@ def test_longer_horizon_is_exact_too(params, search) -> None:
     rng = np.random.default_rng(7)
     for m in (2, 4):
         inst = random_instance(rng, solver.model, m)
-        sol = solve(solver, inst)
-        ref, _ = reference(solver)
-        assert objective_matches(sol, ref), (sol.status, sol.objective, ref)
+        solve_exactly(solver, inst)
 
 
 def test_consecutive_solves_with_incumbent_and_trust_region_stay_exact(params) -> None:
@@ -75,9 +68,7 @@ def test_consecutive_solves_with_incumbent_and_trust_region_stay_exact(params) -
         t0 = 0.36
         for k in range(5):
             t = t0 - 0.06 * k
-            sol = solve(solver, inst, t_remaining_s=t)
-            ref, _ = reference(solver)
-            assert objective_matches(sol, ref), (k, sol.status, sol.objective, ref)
+            sol = solve_exactly(solver, inst, k, t_remaining_s=t)
             checked_trust += sol.trust_region_active
     assert checked_trust > 0
 
@@ -95,9 +86,7 @@ def test_simulation_parameters_are_exact_too(params) -> None:
     rng = np.random.default_rng(5)
     for m in (3, 12):
         inst = random_instance(rng, solver.model, m)
-        sol = solve(solver, inst)
-        ref, _ = reference(solver)
-        assert objective_matches(sol, ref), (sol.status, sol.objective, ref)
+        solve_exactly(solver, inst)
 
 
 @pytest.mark.skipif(not gurobi_available(), reason="gurobipy not installed or unlicensed")
@@ -161,9 +150,7 @@ def test_one_foothold_is_solved_as_its_one_qp(params) -> None:
         inst = random_instance(rng, solver.model, 1)
         solver.reset()
         for t in (0.36, 0.2):
-            sol = solve(solver, inst, t_remaining_s=t)
-            ref, _ = reference(solver)
-            assert objective_matches(sol, ref), (sol.status, sol.objective, ref)
+            sol = solve_exactly(solver, inst, t_remaining_s=t)
             assert sol.nodes_explored == 1
             if sol.has_plan:
                 assert sol.foothold_indices == (0,) * solver.params.horizon_steps

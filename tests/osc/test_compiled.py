@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 
 from processes.osc.model import CassieModel
-from tools.benchmarks.osc import tight_optimum
+from tools.benchmarks.osc import kkt_residual, tight_optimum
 
 
 def _states(q_stand: np.ndarray, n: int = 4) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -168,27 +168,6 @@ def test_compiled_condensation_matches_dense_reference(sim_model, q_stand):
             assert np.array_equal(P, P.T)
 
 
-def _kkt_residual(P, c, lo, hi, G, x) -> tuple[float, float, int]:
-    """Independent optimality check of x: (largest constraint violation, stationarity
-    residual relative to the size of the terms, active constraints), the multipliers of
-    the active constraints found by non-negative least squares."""
-    from scipy.optimize import nnls
-
-    viol = max(float((lo - x).max()), float((x - hi).max()), float((G @ x).max()))
-    n = len(x)
-    eye = np.eye(n)
-    act = [-eye[i] for i in range(n) if x[i] - lo[i] < 1e-7]
-    act += [eye[i] for i in range(n) if hi[i] - x[i] < 1e-7]
-    act += [g for g in G if g @ x > -1e-7]
-    grad = P @ x + c
-    scale = float((np.abs(P) @ np.abs(x) + np.abs(c)).max())
-    if not act:
-        return viol, float(np.abs(grad).max()) / scale, 0
-    A = np.array(act)
-    lam, _ = nnls(A.T, -grad)  # grad + A' lam = 0, lam >= 0
-    return viol, float(np.abs(grad + A.T @ lam).max()) / scale, len(act)
-
-
 def test_osc_qp_solution_is_the_optimum_of_its_qp_with_limits_active(q_stand):
     """On the controller's own QPs (CoM demands that saturate motors, a walking double
     stance whose trailing-foot force cap binds) the compiled active-set solution satisfies
@@ -222,7 +201,7 @@ def test_osc_qp_solution_is_the_optimum_of_its_qp_with_limits_active(q_stand):
         assert dbg.qp_status == 1 and dbg.qp_iterations == 0, dbg.status  # no piqp needed
         P, c, lo, hi, G = osc.qp.last_problem()
         x = np.concatenate([osc.qp.u, osc.qp.lam[np.repeat(osc.stance, 3)]])
-        viol, stat, na = _kkt_residual(P, c, lo, hi, G, x)
+        viol, stat, na = kkt_residual(P, c, lo, hi, G, x)
         assert viol <= 1e-9 and stat <= 1e-12, (viol, stat)
         n_active += na
         ref = tight_optimum(P, c, lo, hi, G)  # (it fails on a zero force cap: lo = hi = 0)

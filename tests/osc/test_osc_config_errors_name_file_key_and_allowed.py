@@ -5,25 +5,16 @@ plan_timeout_s), are ConfigErrors naming the file, the dotted key and what is al
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from runtime.builder import build_node
-from runtime.config import load_profile
-from runtime.errors import ConfigError
-from tests.conftest import one_process_profile
-
-
-def _build(tmp_path: Path, **kw: Any) -> Any:
-    profile = load_profile(one_process_profile(tmp_path, "osc", **kw))
-    return build_node(profile.processes["osc"], profile)
+from tests.conftest import build_one, config_error
 
 
 def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
-    node = _build(tmp_path, params={"start": "stand", "hold_until_plan": True,
-                                    "stand_first_s": 1.2},
-                  gains=lambda g: g["walking"].__setitem__("swing_clearance", 0.12))
+    node = build_one(tmp_path, "osc", params={"start": "stand", "hold_until_plan": True,
+                                              "stand_first_s": 1.2},
+                     gains=lambda g: g["walking"].__setitem__("swing_clearance", 0.12))
     assert node._default_command is None and node._hold_until_plan
     assert node._stand_first_us == 1_200_000
     w = node.params.walking
@@ -41,9 +32,8 @@ def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
     ({"stand_first_s": -2}, "params.stand_first_s: out of range: -2 (allowed: [0.0, 60.0] s)"),
 ])
 def test_a_bad_param_names_the_profile_key_and_allowed(tmp_path: Path, params, message) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, params=params)
-    assert str(err.value) == f"{tmp_path / 'one.yaml'}: processes.osc.{message}"
+    err = config_error(tmp_path, "osc", params=params)
+    assert str(err) == f"{tmp_path / 'one.yaml'}: processes.osc.{message}"
 
 
 @pytest.mark.parametrize(("change", "message"), [
@@ -62,6 +52,5 @@ def test_a_bad_param_names_the_profile_key_and_allowed(tmp_path: Path, params, m
      "safety.damping: must be a list of 10, got 9"),
 ])
 def test_a_bad_gains_file_names_file_key_and_allowed(tmp_path: Path, change, message) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, gains=change)
-    assert str(err.value).startswith(f"{tmp_path / 'gains.yaml'}: {message}")
+    err = config_error(tmp_path, "osc", gains=change)
+    assert str(err).startswith(f"{tmp_path / 'gains.yaml'}: {message}")

@@ -8,47 +8,21 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 
 from processes.perception.elevation_map import ElevationMapParams
 from processes.perception.process import Params
-from runtime.builder import build_node, process_module, read_config
-from runtime.config import HW_CONFIG_DIR, load_profile
-from runtime.errors import ConfigError
+from runtime.builder import process_module, read_config
+from runtime.config import HW_CONFIG_DIR
 from runtime.params import load
+from tests.conftest import assert_names, config_error, one_process
 
-PROFILE = """\
-include: [{hw}/hosts.yaml, {hw}/channels.yaml]
-mode: lockstep
-processes:
-  perception:
-    host: laptop
-    module: processes.perception.process
-    inputs: {{depth: depth, state: network_state}}
-    outputs: {{elevation_map: elevation_map}}
-    gains: {gains}
-    params: {params}
-launch: [perception]
-"""
 GAINS = HW_CONFIG_DIR / "gains" / "elevation_map.yaml"
 
 
-def _proc(tmp_path: Path, params: dict[str, Any], gains: Any = None):  # type: ignore[no-untyped-def]
-    """The profile's perception, with a copy of the elevation map's gains changed by ``gains``."""
-    doc = yaml.safe_load(GAINS.read_text())
-    if gains is not None:
-        gains(doc)
-    gfile = tmp_path / "elevation_map.yaml"
-    gfile.write_text(yaml.safe_dump(doc, sort_keys=False))
-    pfile = tmp_path / "profile.yaml"
-    pfile.write_text(PROFILE.format(hw=HW_CONFIG_DIR, gains=gfile, params=params))
-    profile = load_profile(pfile)
-    return profile.processes["perception"], profile, pfile, gfile
-
-
 def test_the_profile_as_written_reads_its_params_and_gains(tmp_path: Path) -> None:
-    proc, _, _, _ = _proc(tmp_path, {"variant": "hardware", "camera_pose": "frame",
-                                     "camera_mount_pos_m": [0.1, 0, 0.03]})
+    proc, _ = one_process(tmp_path, "perception", {"variant": "hardware", "camera_pose": "frame",
+                                                   "camera_mount_pos_m": [0.1, 0, 0.03]},
+                          mode="lockstep")
     params, gains = read_config(proc, process_module(proc))
     assert params == Params(variant="hardware", camera_pose="frame",
                             camera_mount_pos_m=(0.1, 0.0, 0.03))
@@ -72,11 +46,9 @@ ALL_PARAMS = ("camera_mount_pos_m, camera_pitch_down_deg, camera_pose, crop_legs
 def test_a_bad_param_names_the_profile_the_key_and_what_is_allowed(
         tmp_path: Path, params: dict[str, Any], key: str, problem: str,
         allowed: str | None) -> None:
-    proc, profile, pfile, _ = _proc(tmp_path, params)
-    with pytest.raises(ConfigError) as err:
-        build_node(proc, profile)
-    assert (err.value.file, err.value.key) == (str(pfile), f"processes.perception.params.{key}")
-    assert problem in err.value.problem and err.value.allowed == allowed
+    err = config_error(tmp_path, "perception", params, mode="lockstep")
+    assert_names(err, tmp_path / "one.yaml", f"processes.perception.params.{key}", problem,
+                 allowed)
 
 
 @pytest.mark.parametrize(("variant", "change", "key", "problem", "allowed"), [
@@ -92,12 +64,5 @@ def test_a_bad_param_names_the_profile_the_key_and_what_is_allowed(
 def test_a_bad_gain_names_the_gains_file_the_key_and_what_is_allowed(
         tmp_path: Path, variant: str, change: Any, key: str, problem: str,
         allowed: str | None) -> None:
-    proc, profile, _, gfile = _proc(tmp_path, {"variant": variant}, change)
-    with pytest.raises(ConfigError) as err:
-        build_node(proc, profile)
-    assert (err.value.file, err.value.key) == (str(gfile), key)
-    assert problem in err.value.problem
-    if allowed is None:  # an unknown key: every field of the gains, alphabetically
-        assert err.value.allowed is not None and "resolution_m" in err.value.allowed
-    else:
-        assert err.value.allowed == allowed
+    err = config_error(tmp_path, "perception", {"variant": variant}, change, mode="lockstep")
+    assert_names(err, tmp_path / "gains.yaml", key, problem, allowed, listing="resolution_m")

@@ -18,6 +18,12 @@ needs_netns = pytest.mark.skipif(
 )
 
 
+def _in(ns: str, *cmd: str) -> subprocess.CompletedProcess[str]:
+    """``cmd`` run in the network namespace ``ns``, from the repository, its output kept."""
+    return subprocess.run(["ip", "netns", "exec", ns, *cmd], cwd=REPO, capture_output=True,
+                          text=True, timeout=60)
+
+
 @needs_netns
 def test_missing_multicast_route_gives_error_with_the_fix():
     ns = f"cassie-noroute-{uuid.uuid4().hex[:8]}"
@@ -25,36 +31,13 @@ def test_missing_multicast_route_gives_error_with_the_fix():
     try:
         subprocess.run(["ip", "netns", "exec", ns, "ip", "link", "set", "lo", "up"], check=True)
         code = "from runtime.bus import Bus\nBus('udpm://239.255.76.67:7667')\n"
-        res = subprocess.run(
-            ["ip", "netns", "exec", ns, sys.executable, "-c", code],
-            cwd=REPO,
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
+        res = _in(ns, sys.executable, "-c", code)
         assert res.returncode != 0
         assert "MulticastRouteError" in res.stderr
         assert "ip route add 224.0.0.0/4 dev lo" in res.stderr
         # and through the CLI: a clear message and exit code 3, no traceback
-        res = subprocess.run(
-            [
-                "ip",
-                "netns",
-                "exec",
-                ns,
-                sys.executable,
-                "-m",
-                "tools.cli",
-                "run",
-                "ticker",
-                "--profile",
-                "tests/profiles/runtime.yaml",
-            ],
-            cwd=REPO,
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
+        res = _in(ns, sys.executable, "-m", "tools.cli", "run", "ticker", "--profile",
+                  "tests/profiles/runtime.yaml")
         assert res.returncode == 3
         assert "ip route add 224.0.0.0/4 dev lo" in res.stderr
         assert "Traceback" not in res.stderr
@@ -63,13 +46,7 @@ def test_missing_multicast_route_gives_error_with_the_fix():
             ["ip", "netns", "exec", ns, "ip", "route", "add", "224.0.0.0/4", "dev", "lo"],
             check=True,
         )
-        res = subprocess.run(
-            ["ip", "netns", "exec", ns, sys.executable, "-c", code],
-            cwd=REPO,
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
+        res = _in(ns, sys.executable, "-c", code)
         assert res.returncode == 0, res.stderr
     finally:
         subprocess.run(["ip", "netns", "del", ns], check=False)

@@ -100,9 +100,9 @@ def test_node_publishes_depth_frames_at_30_hz_with_sim_time(driver_factory) -> N
     drv = driver_factory("lockstep", {"terrain": "flat"})
     state = OutputPacket()
     for k in range(140):  # 70 ms of sim time
-        state.decode(drv.published["robot_output"][-1])
-        drv.tick(encode_input(k, state.seq, np.zeros(10)))
-    frames = [depth_frame_t.decode(b) for b in drv.published["depth"]]
+        state.decode(drv.sent["robot_output"][-1])
+        drv.tick(command=encode_input(k, state.seq, np.zeros(10)))
+    frames = [depth_frame_t.decode(b) for b in drv.sent["depth"]]
     # captured at the first 0.5 ms step at or after each 1/30 s mark
     assert [f.header.utime for f in frames] == [0, 33500, 67000]
     f = frames[-1]

@@ -16,9 +16,9 @@ def test_robot_stands_on_each_terrain(driver_factory, terrain: str) -> None:
     node = drv.node
     state = OutputPacket()
     for k in range(100):  # 50 ms on the holder, zero torque
-        state.decode(drv.published["robot_output"][-1])
-        drv.tick(encode_input(k, state.seq, np.zeros(10)))
-    gt = ground_truth_t.decode(drv.published["ground_truth"][-1])
+        state.decode(drv.sent["robot_output"][-1])
+        drv.tick(command=encode_input(k, state.seq, np.zeros(10)))
+    gt = ground_truth_t.decode(drv.sent["ground_truth"][-1])
     np.testing.assert_array_equal(gt.q, node.core.d.qpos)  # published at the last step
     assert gt.header.utime == 50000 and gt.num_positions == 35 and gt.num_velocities == 32
     assert gt.foot_contact == [True, True]
@@ -26,6 +26,6 @@ def test_robot_stands_on_each_terrain(driver_factory, terrain: str) -> None:
     feet = np.array(gt.foot_pos)
     assert np.all(np.abs(feet[:, 2] - node.settings.terrain.start_z) < 0.05)
     assert abs(gt.com[0] - feet[:, 0].mean()) < 0.02  # CoM above the feet
-    frame = depth_frame_t.decode(drv.published["depth"][-1])
+    frame = depth_frame_t.decode(drv.sent["depth"][-1])
     img = np.frombuffer(frame.data, dtype="<u2")
     assert (img > 0).mean() > 0.5  # the terrain ahead is in view and in range

@@ -98,10 +98,10 @@ def test_node_counts_garbage_and_keeps_stepping(driver_factory) -> None:
     drv = driver_factory("realtime", {"terrain": "flat", "camera_render": "inline"})
     node = drv.node
     for k in range(20):
-        drv.tick(b"\x00garbage" * k)
+        drv.tick(command=b"\x00garbage" * k)
     assert node.tpc.link.malformed == 20
     assert node.core.steps == 20
-    assert len(drv.published["robot_output"]) == 21
+    assert len(drv.sent["robot_output"]) == 21
     assert "bad 20" in node.status()
 
 

@@ -5,26 +5,18 @@ naming the file, the dotted key and what is allowed."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from runtime.builder import build_node
-from runtime.config import load_profile
-from runtime.errors import ConfigError
-from tests.conftest import one_process_profile
-
-
-def _build(tmp_path: Path, **kw: Any) -> Any:
-    profile = load_profile(one_process_profile(tmp_path, "sim", **kw))
-    return build_node(profile.processes["sim"], profile)
+from tests.conftest import build_one, config_error
 
 
 def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
-    node = _build(tmp_path, params={"terrain": "stones", "terrain_seed": 3,
-                                    "camera_render": False, "holder_release": "manual",
-                                    "push": {"after_release_s": 6, "force_n": [0, 400, 0]}},
-                  gains=lambda g: g["lockstep"].__setitem__("timeout_s", 0.02))
+    node = build_one(tmp_path, "sim",
+                     params={"terrain": "stones", "terrain_seed": 3, "camera_render": False,
+                             "holder_release": "manual",
+                             "push": {"after_release_s": 6, "force_n": [0, 400, 0]}},
+                     gains=lambda g: g["lockstep"].__setitem__("timeout_s", 0.02))
     try:
         s = node.settings
         assert s.terrain.seed == 3 and node.render_mode == "off"
@@ -54,9 +46,8 @@ def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
                                   "manual)"),
 ])
 def test_a_bad_param_names_the_profile_key_and_allowed(tmp_path: Path, params, message) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, params=params)
-    assert str(err.value).startswith(f"{tmp_path / 'one.yaml'}: processes.sim.{message}")
+    err = config_error(tmp_path, "sim", params=params)
+    assert str(err).startswith(f"{tmp_path / 'one.yaml'}: processes.sim.{message}")
 
 
 @pytest.mark.parametrize(("change", "message"), [
@@ -73,6 +64,5 @@ def test_a_bad_param_names_the_profile_key_and_allowed(tmp_path: Path, params, m
      "watchdog_ms: must be a number, got '10' (allowed: [0.5, 1000.0] ms)"),
 ])
 def test_a_bad_gains_file_names_file_key_and_allowed(tmp_path: Path, change, message) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, gains=change)
-    assert str(err.value) == f"{tmp_path / 'gains.yaml'}: {message}"
+    err = config_error(tmp_path, "sim", gains=change)
+    assert str(err) == f"{tmp_path / 'gains.yaml'}: {message}"

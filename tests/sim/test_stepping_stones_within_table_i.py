@@ -66,5 +66,5 @@ def test_ground_truth_footholds_as_halfspaces_and_published(driver_factory) -> N
     assert "footholds" in drv.node.outputs
     from lcmtypes import foothold_set_t
 
-    got = foothold_set_t.decode(drv.published["footholds"][0])
+    got = foothold_set_t.decode(drv.sent["footholds"][0])
     assert got.num_footholds == 17 and got.status_text == "ground truth: stones"

@@ -5,31 +5,21 @@ ConfigError naming the file, the dotted key and what is allowed."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from runtime.builder import build_node
-from runtime.config import load_profile
-from runtime.errors import ConfigError
-from tests.conftest import one_process_profile
-
-
-def _build(tmp_path: Path, **kw: Any) -> Any:
-    profile = load_profile(one_process_profile(tmp_path, "state_estimator", **kw))
-    return build_node(profile.processes["state_estimator"], profile)
+from tests.conftest import build_one, config_error
 
 
 def test_the_shipped_settings_build(tmp_path: Path) -> None:
-    node = _build(tmp_path)
+    node = build_one(tmp_path, "state_estimator")
     assert node.name == "state_estimator" and node.params.network_every == 10
     assert node.params.init.xy_m == (0.0, 0.0)
 
 
 def test_any_param_is_an_unknown_key_naming_the_profile(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, params={"network_every": 5})
-    assert str(err.value) == (f"{tmp_path / 'one.yaml'}: processes.state_estimator.params."
+    err = config_error(tmp_path, "state_estimator", params={"network_every": 5})
+    assert str(err) == (f"{tmp_path / 'one.yaml'}: processes.state_estimator.params."
                               "network_every: unknown key (allowed: none: it takes no keys)")
 
 
@@ -47,6 +37,5 @@ def test_any_param_is_an_unknown_key_naming_the_profile(tmp_path: Path) -> None:
      "contact.off_n: 95.0 must be below on_n (90.0) for hysteresis (allowed: [0, 90.0) N)"),
 ])
 def test_a_bad_gains_file_names_file_key_and_allowed(tmp_path: Path, change, message) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, gains=change)
-    assert str(err.value) == f"{tmp_path / 'gains.yaml'}: {message}"
+    err = config_error(tmp_path, "state_estimator", gains=change)
+    assert str(err) == f"{tmp_path / 'gains.yaml'}: {message}"

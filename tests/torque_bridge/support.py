@@ -71,3 +71,13 @@ class BridgeRig:
     @property
     def torque(self) -> np.ndarray:
         return self.packets[-1].torque.copy()
+
+
+def packets(driver: Any) -> list[InputPacket]:
+    """The torque packets a ``runtime.driver.NodeDriver`` of the bridge sent, decoded."""
+    out = []
+    for raw in driver.sent["robot_input"]:
+        p = InputPacket()
+        p.decode(raw)
+        out.append(p)
+    return out

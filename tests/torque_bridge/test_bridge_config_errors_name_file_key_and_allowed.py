@@ -5,24 +5,16 @@ dotted key and what is allowed; good ones reach the node."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from runtime.builder import build_node
-from runtime.config import load_profile
-from runtime.errors import ConfigError
-from tests.conftest import one_process_profile
-
-
-def _build(tmp_path: Path, **kw: Any) -> Any:
-    profile = load_profile(one_process_profile(tmp_path, "torque_bridge", **kw))
-    return build_node(profile.processes["torque_bridge"], profile)
+from tests.conftest import build_one, config_error
 
 
 def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
-    node = _build(tmp_path, params={"answer_on": "state", "fill_hz": 1000, "release_after_s": 1},
-                  gains=lambda g: g["torque_limit_nm"].__setitem__("foot", 40))
+    node = build_one(tmp_path, "torque_bridge",
+                     params={"answer_on": "state", "fill_hz": 1000, "release_after_s": 1},
+                     gains=lambda g: g["torque_limit_nm"].__setitem__("foot", 40))
     assert node.answer_on == "state" and node.release_after_us == 1_000_000
     assert node.params.torque_limit == (112.5, 112.5, 195.2, 195.2, 40.0) * 2
     assert node.params.watchdog_s == 0.010 and node.params.fallback == "damping"
@@ -38,9 +30,8 @@ def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
                                   "(allowed: [0.0, 60.0] s)"),
 ])
 def test_a_bad_param_names_the_profile_key_and_allowed(tmp_path: Path, params, message) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, params=params)
-    assert str(err.value) == f"{tmp_path / 'one.yaml'}: processes.torque_bridge.{message}"
+    err = config_error(tmp_path, "torque_bridge", params=params)
+    assert str(err) == f"{tmp_path / 'one.yaml'}: processes.torque_bridge.{message}"
 
 
 @pytest.mark.parametrize(("change", "message"), [
@@ -58,6 +49,5 @@ def test_a_bad_param_names_the_profile_key_and_allowed(tmp_path: Path, params, m
      "watchdog_ms: out of range: 0.1 (allowed: [0.5, 1000.0] ms)"),
 ])
 def test_a_bad_gains_file_names_file_key_and_allowed(tmp_path: Path, change, message) -> None:
-    with pytest.raises(ConfigError) as err:
-        _build(tmp_path, gains=change)
-    assert str(err.value) == f"{tmp_path / 'gains.yaml'}: {message}"
+    err = config_error(tmp_path, "torque_bridge", gains=change)
+    assert str(err) == f"{tmp_path / 'gains.yaml'}: {message}"

@@ -8,27 +8,10 @@ from __future__ import annotations
 import numpy as np
 
 from lcmtypes import robot_state_t
-from processes.state_estimator.process import raw_utime_and_seq
 from processes.torque_bridge.process import TorqueBridgeNode
-from runtime.bus import Subscription
-from runtime.cassie_packets import InputPacket
-from runtime.port_buffer import PortInbox
-from tests.torque_bridge.support import command, state
-
-
-class _Ctx:
-    def __init__(self) -> None:
-        self.now_utime = 0
-        self.sent: list[InputPacket] = []
-
-    def due(self, role: str) -> bool:
-        return True
-
-    def publish(self, role: str, msg: object) -> None:
-        if role == "robot_input":
-            p = InputPacket()
-            p.decode(msg)  # type: ignore[arg-type]
-            self.sent.append(p)
+from runtime.codecs import raw_utime_and_seq
+from runtime.driver import NodeDriver
+from tests.torque_bridge.support import command, packets, state
 
 
 def test_raw_utime_and_seq_agree_with_the_decoded_state_whatever_its_lengths():
@@ -44,48 +27,39 @@ def test_raw_utime_and_seq_agree_with_the_decoded_state_whatever_its_lengths():
     assert raw_utime_and_seq(b"\0" * 20) is None
 
 
-def _rig() -> tuple[TorqueBridgeNode, _Ctx, dict[str, Subscription], PortInbox]:
-    node = TorqueBridgeNode(answer_on="command", fill_hz=1000.0)
-    ports = {"torque": Subscription("OSC_TORQUE", type(command(0, [0.0])), "newest", 1),
-             "state": Subscription("CASSIE_STATE", robot_state_t, "newest", 1)}
-    ctx = _Ctx()
-    node.setup(ctx)
-    return node, ctx, ports, PortInbox(ports)
+def _rig(limits: dict | None = None) -> NodeDriver:
+    """The bridge filling in a 1 kHz OSC's skipped states (``fill_hz``), driven by hand."""
+    return NodeDriver(TorqueBridgeNode(answer_on="command", fill_hz=1000.0), limits=limits)
 
 
 def test_a_fill_acks_the_new_state_without_decoding_it():
-    node, ctx, ports, inbox = _rig()
-    st = ports["state"]
-    st._on_message("CASSIE_STATE", state(1000, seq=2).encode())
-    inbox._trigger = command(1000, [3.0] * 10, seq=2)  # the OSC's torque for state 1000
-    node.tick(ctx, inbox)
-    inbox._trigger = None
+    d = _rig()
+    st = d.ports["state"]
+    # the OSC's torque for state 1000
+    assert d.tick(state=state(1000, seq=2), torque=command(1000, [3.0] * 10, seq=2))
     for k in range(3, 13):  # the odd states, each filled in with the same torque
-        st._on_message("CASSIE_STATE", state(500 * k, seq=k).encode())
+        d.put("state", state(500 * k, seq=k))
         decoded_before = st.peek()
-        node.tick(ctx, inbox)
-        st.fresh = False  # (the runner marks a filled state answered)
-        assert ctx.sent[-1].ack == k and np.allclose(ctx.sent[-1].torque, 3.0)
+        assert d.fill_tick()
+        assert not st.fresh  # (the runner marks a filled state answered)
+        sent = packets(d)
+        assert sent[-1].ack == k and np.allclose(sent[-1].torque, 3.0)
         if k > 3:  # (the first is decoded and checked: one in every 0.1 s is)
             assert st.peek() is decoded_before  # read from its bytes, never decoded
-    assert node.fills == 10 and len(ctx.sent) == 11
+    assert d.node.fills == 10 and len(d.sent["robot_input"]) == 11
     # the fallback (no command for the watchdog's 10 ms) reads the newest state in full
-    assert inbox.latest("state").header.utime == 6000
+    assert d.inbox.latest("state").header.utime == 6000
 
 
 def test_a_state_far_ahead_of_the_last_answer_is_decoded_and_checked():
-    node, ctx, ports, inbox = _rig()
-    st = ports["state"]
+    d = _rig()
+    st = d.ports["state"]
     st.check = lambda m: "utime off its clock" if m.header.utime > 10**9 else None
-    inbox._trigger = command(1000, [3.0] * 10, seq=2)
-    node.tick(ctx, inbox)
-    inbox._trigger = None
-    st._on_message("CASSIE_STATE", state(10**12, seq=9).encode())  # a corrupt utime
-    node.tick(ctx, inbox)
-    assert st.rejected == 1 and len(ctx.sent) == 1  # rejected at the edge: not answered
-    st._on_message("CASSIE_STATE", state(1500, seq=3).encode())
-    node.tick(ctx, inbox)
-    assert len(ctx.sent) == 2 and ctx.sent[-1].ack == 3
+    assert d.tick(torque=command(1000, [3.0] * 10, seq=2))
+    assert d.fill_tick(state=state(10**12, seq=9))  # a corrupt utime: rejected at the edge,
+    assert st.rejected == 1 and len(d.sent["robot_input"]) == 1  # not answered
+    assert d.fill_tick(state=state(1500, seq=3))
+    assert len(d.sent["robot_input"]) == 2 and packets(d)[-1].ack == 3
 
 
 def test_a_second_of_fills_keeps_the_edge_checks_clock_in_step():
@@ -94,17 +68,15 @@ def test_a_second_of_fills_keeps_the_edge_checks_clock_in_step():
     ``utime_step_s`` following the stream, so a state decoded after 1.5 s is admitted, not
     rejected as off its clock (measured live before: after a bridge's take-over it was, the
     bridge fell back to damping, and Cassie fell)."""
-    from runtime.validate import InputCheck
-
-    node, ctx, ports, inbox = _rig()
-    st = ports["state"]
-    st.check = InputCheck(robot_state_t, {"utime_step_s": [0.0, 1.0]})
+    d = _rig(limits={"state": {"utime_step_s": (0.0, 1.0)}})
+    st = d.ports["state"]
     for k in range(2, 3002):  # 1.5 s of states at 2 kHz
-        st._on_message("CASSIE_STATE", state(500 * k, seq=k & 0xFF).encode())
-        inbox._trigger = command(500 * k, [3.0] * 10, seq=k & 0xFF) if k % 2 == 0 else None
-        node.tick(ctx, inbox)
-        st.fresh = False
-    assert node.fills == 1500 and len(ctx.sent) == 3000 and st.rejected == 0
-    st._on_message("CASSIE_STATE", state(500 * 3002, seq=3002 & 0xFF).encode())
-    assert inbox.latest("state").header.utime == 500 * 3002  # admitted: in step
+        d.put("state", state(500 * k, seq=k & 0xFF))
+        if k % 2 == 0:  # the OSC's torque for this state, or else a fill
+            assert d.tick(torque=command(500 * k, [3.0] * 10, seq=k & 0xFF))
+        else:
+            assert d.fill_tick()
+    assert d.node.fills == 1500 and len(d.sent["robot_input"]) == 3000 and st.rejected == 0
+    d.put("state", state(500 * 3002, seq=3002 & 0xFF))
+    assert d.inbox.latest("state").header.utime == 500 * 3002  # admitted: in step
     assert st.rejected == 0

@@ -8,53 +8,37 @@ import pytest
 
 from processes.torque_bridge.process import TorqueBridgeNode
 from runtime.builder import build_node
-from runtime.cassie_packets import FLAG_RELEASE_HOLDER, InputPacket
+from runtime.cassie_packets import FLAG_RELEASE_HOLDER
 from runtime.config import load_profile
+from runtime.driver import NodeDriver
 from runtime.errors import ConfigError
-from tests.torque_bridge.support import command, state
-from tools.benchmarks.common import DirectInbox
+from tests.torque_bridge.support import command, packets, state
 
 
-class _Ctx:
-    def __init__(self) -> None:
-        self.now_utime = 0
-        self.flags: list[int] = []
-
-    def due(self, role: str) -> bool:
-        return False
-
-    def publish(self, role: str, msg: object) -> None:
-        p = InputPacket()
-        p.decode(msg)  # type: ignore[arg-type]
-        self.flags.append(p.flags & FLAG_RELEASE_HOLDER)
-
-
-def _send(node: TorqueBridgeNode, ctx: _Ctx, inbox: DirectInbox, k: int, mode: int) -> None:
-    u = 1000 * k  # a 1 kHz controller
-    inbox.messages["state"] = state(u, seq=2 * k)
+def _send(d: NodeDriver, k: int, mode: int) -> int:
+    """A state and the 1 kHz controller's command for it, in ``mode``; the release flag of
+    the packet the command sent."""
+    u = 1000 * k
     c = command(u, [1.0] * 10, seq=2 * k)
     c.mode = mode
-    inbox.messages["torque"] = c
-    node.tick(ctx, inbox)
+    assert d.tick(state=state(u, seq=2 * k), torque=c)
+    (p,) = packets(d)
+    d.sent["robot_input"].clear()
+    return p.flags & FLAG_RELEASE_HOLDER
 
 
 def test_release_flag_after_one_second_of_standing_and_not_before():
     node = TorqueBridgeNode(answer_on="command")
     node.release_after_us = 1_000_000
-    ctx, inbox = _Ctx(), DirectInbox("torque")
-    node.setup(ctx)
-    for k in range(1, 501):  # 0.5 s off (zero torque, waiting for a plan)
-        _send(node, ctx, inbox, k, mode=3)
-    for k in range(501, 1301):  # 0.8 s standing, then a safe-mode blip: the count restarts
-        _send(node, ctx, inbox, k, mode=1)
-    _send(node, ctx, inbox, 1301, mode=2)
-    for k in range(1302, 2302):  # 1 s of standing: released at its end
-        _send(node, ctx, inbox, k, mode=1)
-    assert not any(ctx.flags[:2301])
-    _send(node, ctx, inbox, 2302, mode=0)
-    assert ctx.flags[-1] == FLAG_RELEASE_HOLDER
-    _send(node, ctx, inbox, 2303, mode=0)
-    assert ctx.flags[-1] == FLAG_RELEASE_HOLDER  # and it stays set
+    d = NodeDriver(node, output_rate_hz={"applied_input": 200.0})  # as hw_config decimates it
+    flags = [_send(d, k, mode=3) for k in range(1, 501)]  # 0.5 s off (zero torque, no plan)
+    # 0.8 s standing, then a safe-mode blip: the count restarts
+    flags += [_send(d, k, mode=1) for k in range(501, 1301)]
+    flags.append(_send(d, 1301, mode=2))
+    flags += [_send(d, k, mode=1) for k in range(1302, 2302)]  # 1 s of standing: released
+    assert not any(flags)
+    assert _send(d, 2302, mode=0) == FLAG_RELEASE_HOLDER  # at its end
+    assert _send(d, 2303, mode=0) == FLAG_RELEASE_HOLDER  # and it stays set
 
 
 def test_sim_profile_stands_in_the_holder_before_release(tmp_path):

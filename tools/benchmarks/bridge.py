@@ -23,11 +23,9 @@ this tree's. Nothing is asserted.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import socket
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -36,18 +34,20 @@ import numpy as np
 
 from tools.benchmarks.common import REPO, extract_tree, free_udp_port, until_sigterm
 from tools.benchmarks.sim import (
+    LOOP_ROWS,
+    add_live_options,
     bench_lcm_url,
     child_env,
     collect_timing,
     contend,
-    loop_figures,
     pin,
     report_interleaved,
+    run_figures,
     run_interleaved,
+    run_live,
     start_child,
     start_contender,
     stop_child,
-    use_tree,
 )
 
 PERIOD_S = 0.0005
@@ -141,27 +141,7 @@ def _sink(port: int, cpus: list[int]) -> int:
 def _bridge(tree: str | None, sink_port: int, seconds: float) -> int:
     """The bridge of ``tree``'s ``hw_config/sim.yaml`` under the live runner, its UDP link
     moved to the sink's port."""
-    root = use_tree(tree)
-    import importlib
-    import logging
-
-    from runtime.config import load_profile
-    from runtime.config_types import ChannelConfig
-    from runtime.loops import LiveRunner
-    from runtime.scheduling import apply_scheduling
-
-    logging.basicConfig(level=logging.WARNING, format="%(name)s %(levelname)s: %(message)s")
-    profile = load_profile(root / "hw_config" / "sim.yaml")
-    proc = profile.processes["torque_bridge"]
-    out = ChannelConfig("robot_input", f"udp:127.0.0.1:{sink_port}", ("127.0.0.1", sink_port))
-    proc = dataclasses.replace(proc, outputs={**proc.outputs, "robot_input": out})
-    profile = dataclasses.replace(profile, processes={**profile.processes,
-                                                      "torque_bridge": proc})
-    for note in apply_scheduling(proc):
-        if "failed" in note:
-            print(note, file=sys.stderr)
-    node = importlib.import_module("runtime.builder").build_node(proc, profile)
-    return LiveRunner(node, proc, profile).run(duration_s=seconds)
+    return run_live(tree, "torque_bridge", seconds, {"robot_input": sink_port})
 
 
 def _run_once(tree: Path | None, args: argparse.Namespace, nuc_cpus: list[int],
@@ -197,31 +177,19 @@ def _run_once(tree: Path | None, args: argparse.Namespace, nuc_cpus: list[int],
         sink_out, _ = stop_child(sink)
         if hog is not None:
             stop_child(hog)
-    if bridge.returncode != 0:
-        raise SystemExit(f"the bridge exited with {bridge.returncode}:\n{bridge_err[-3000:]}")
-    fig = loop_figures(msgs, args.warmup)
-    if fig.get("windows", 0) < 2:
-        raise SystemExit(f"no TIMING from the bridge after the warm-up:\n{bridge_err[-3000:]}")
-    c, first, last = fig.pop("_counter"), fig.pop("_first"), fig.pop("_last")
+    fig, delta = run_figures("bridge", bridge, bridge_err, msgs, args.warmup)
     for name in ("packets_sent", "watchdog_trips", "clamps", "nan_rejects"):
-        fig[name] = int(c(last, name) - c(first, name))
+        fig[name] = int(delta(name))
     try:
         fig["feeder_published"] = json.loads(feed_out.strip().splitlines()[-1])["published"]
         fig["sink_received"] = json.loads(sink_out.strip().splitlines()[-1])["received"]
     except (ValueError, IndexError, KeyError):
         pass
-    for ln in [ln for ln in bridge_err.splitlines() if "failed" in ln or "Error" in ln][:5]:
-        print("bridge:", ln, file=sys.stderr)
     return fig
 
 
 ROWS = (
-    ("CPU share of a core", "cpu_share"),
-    ("tick CPU median (ms)", "tick_cpu_median_ms"),
-    ("tick CPU p90 (ms)", "tick_cpu_p90_ms"),
-    ("tick CPU p99 (ms)", "tick_cpu_p99_ms"),
-    ("tick wall median (ms)", "tick_median_ms"),
-    ("tick wall p99 (ms)", "tick_p99_ms"),
+    *LOOP_ROWS,
     ("response (command sent -> packet sent) median (ms)", "input_age_median_ms"),
     ("response p99 (ms)", "input_age_p99_ms"),
     ("deadline miss ratio", "deadline_miss_ratio"),
@@ -235,23 +203,9 @@ ROWS = (
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="cassie bench bridge", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--json", metavar="FILE", help="write the figures as one flat JSON object")
-    ap.add_argument("--seconds", type=float, default=5.0,
-                    help="timed seconds of each run (after the warm-up; default 5)")
-    ap.add_argument("--warmup", type=float, default=1.0, help="seconds left out at the start")
-    ap.add_argument("--repeats", type=int, default=2, help="runs of each variant (default 2)")
-    ap.add_argument("--contend", metavar="MB", type=float, default=8.0,
-                    help="a nice-19 process on the bridge's CPU sweeping MB of memory, as the "
-                         "estimator and OSC share that CPU in the stack (default 8; 0: none)")
-    ap.add_argument("--baseline", metavar="REV",
-                    help="also run the bridge of git revision REV, interleaved with this tree's")
-    ap.add_argument("--role", choices=("feeder", "sink", "bridge", "contend"),
-                    help=argparse.SUPPRESS)
+    add_live_options(ap, "bridge", "the estimator and OSC",
+                     ("feeder", "sink", "bridge", "contend"))
     ap.add_argument("--port", type=int, help=argparse.SUPPRESS)
-    ap.add_argument("--tree", help=argparse.SUPPRESS)
-    ap.add_argument("--cpus", default="", help=argparse.SUPPRESS)
-    ap.add_argument("--fifo", type=int, default=0, help=argparse.SUPPRESS)
-    ap.add_argument("--mb", type=float, default=0.0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     cpus = [int(c) for c in args.cpus.split(",") if c]
     if args.role == "feeder":

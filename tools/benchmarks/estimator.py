@@ -31,11 +31,12 @@ from typing import Any
 
 import numpy as np
 
+from runtime.driver import NodeDriver
 from tools.benchmarks.common import (
     REPO,
-    DirectInbox,
     free_udp_port,
     git_archive,
+    machine_load,
     print_table,
     progress,
     summarize,
@@ -43,22 +44,6 @@ from tools.benchmarks.common import (
 )
 
 PERIOD_MS = 0.5
-
-
-class _EncodingContext:
-    """A Context that encodes every message, as the live runner and LCM would."""
-
-    def __init__(self) -> None:
-        self.now_utime = 0
-        self.bytes_out = 0
-
-    def due(self, role: str) -> bool:  # no decimation outside the runners
-
-        return True
-
-
-    def publish(self, role: str, msg: Any) -> None:
-        self.bytes_out += len(msg.encode())
 
 
 def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = None,
@@ -76,9 +61,9 @@ def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = N
     # each packet twice: the node's tick, then the estimator's update alone
     bar = progress(2 * repeats * len(packets), desc, unit="tick")
     for _ in range(repeats):
-        node = node_cls()
-        ctx, inbox = _EncodingContext(), DirectInbox("robot_output")
-        node.setup(ctx)
+        # every message encoded as LCM would send it, none decimated, none decoded
+        d = NodeDriver(node_cls(), encoded=True)
+        node = d.node
         est = node.estimator
         assert est is not None
         gc.collect()
@@ -86,14 +71,15 @@ def time_ticks(packets: list[bytes], repeats: int = 1, node_cls: type | None = N
         gc.disable()
         try:
             for raw in packets:
-                inbox.messages["robot_output"] = raw
-                c0 = time.thread_time_ns()
-                t0 = time.perf_counter_ns()
-                node.tick(ctx, inbox)
-                t1 = time.perf_counter_ns()
-                node_ms.append((t1 - t0) / 1e6)
-                cpu_ms.append((time.thread_time_ns() - c0) / 1e6)
-                bar.update(1)  # after both clocks are read: outside the timed tick
+                # the driver times node.tick alone (tick_ns): this put and its taking of
+                # the trigger are left out
+                d.put("robot_output", raw)
+                d.tick()
+                node_ms.append(d.tick_ns / 1e6)
+                cpu_ms.append(d.tick_cpu_ns / 1e6)
+                for sent in d.sent.values():
+                    sent.clear()  # (nothing kept, as LCM keeps nothing)
+                bar.update(1)  # outside the timed tick
             # the estimator alone (no packet decode, no messages), on the decoded packets,
             # with the ALIP part on every network_every-th packet as in the node
             est2 = type(est)(node.params, est.kin.m)
@@ -608,39 +594,29 @@ def equivalence(packets: list[bytes], baseline: type) -> dict[str, float]:
     from lcmtypes import contact_t, robot_state_t
     from processes.state_estimator.process import StateEstimatorNode
 
-    class _Capture(_EncodingContext):
-        def __init__(self) -> None:
-            super().__init__()
-            self.sent: list[tuple[str, bytes]] = []
-
-        def publish(self, role: str, msg: Any) -> None:
-            self.sent.append((role, msg.encode()))
-
     runs = []
     for name, cls in (("baseline", baseline), ("this tree", StateEstimatorNode)):
-        node, ctx, inbox = cls(), _Capture(), DirectInbox("robot_output")
-        node.setup(ctx)
+        d = NodeDriver(cls(), encoded=True)
         with progress(len(packets), f"equivalence: {name}", unit="tick") as bar:  # untimed
             for raw in packets:
-                inbox.messages["robot_output"] = raw
-                node.tick(ctx, inbox)
+                d.tick(robot_output=raw)
                 bar.update(1)
-        runs.append(ctx.sent)
+        runs.append(d.sent)
     a, b = runs
-    out = {"equiv_messages": float(len(b)), "equiv_roles_differ": float(
-        [r for r, _ in a] != [r for r, _ in b])}
+    out = {"equiv_messages": float(sum(map(len, b.values()))), "equiv_roles_differ": float(
+        {r: len(m) for r, m in a.items()} != {r: len(m) for r, m in b.items()})}
     same = states = mismatches = 0
     big: dict[str, float] = {"q": 0.0, "v": 0.0, "alip_x": 0.0, "alip_stance_pos": 0.0,
                              "contact_force": 0.0, "spring_deflection": 0.0}
-    for (role, x), (_, y) in zip(a, b, strict=False):
-        if role == "contact":
-            mx, my = contact_t.decode(x), contact_t.decode(y)
-            mismatches += mx.in_contact != my.in_contact
-            big["contact_force"] = max(big["contact_force"], float(np.abs(
-                np.subtract(mx.force_estimate, my.force_estimate)).max()))
-            big["spring_deflection"] = max(big["spring_deflection"], float(np.abs(
-                np.subtract(mx.spring_deflection, my.spring_deflection)).max()))
-            continue
+    for x, y in zip(a["contact"], b["contact"], strict=False):
+        mx, my = contact_t.decode(x), contact_t.decode(y)
+        mismatches += mx.in_contact != my.in_contact
+        big["contact_force"] = max(big["contact_force"], float(np.abs(
+            np.subtract(mx.force_estimate, my.force_estimate)).max()))
+        big["spring_deflection"] = max(big["spring_deflection"], float(np.abs(
+            np.subtract(mx.spring_deflection, my.spring_deflection)).max()))
+    for x, y in zip(a["state"] + a["network_state"], b["state"] + b["network_state"],
+                    strict=False):
         mx, my = robot_state_t.decode(x), robot_state_t.decode(y)
         states += 1
         same += x == y
@@ -655,21 +631,6 @@ def equivalence(packets: list[bytes], baseline: type) -> dict[str, float]:
     for k, v in big.items():
         out[f"equiv_{k}_max_abs_diff"] = v
     return out
-
-
-def machine_load() -> dict[str, float]:
-    """How busy the machine was: load average and the cost of one tiny numpy op (a quiet
-    2-core VM does ``a + b`` on 3-vectors in about 0.4-0.5 us; shared, 3-5x more)."""
-    import os
-
-    a, b = np.zeros(3), np.ones(3)
-    samples = []
-    for _ in range(200):
-        t0 = time.perf_counter_ns()
-        for _ in range(50):
-            np.add(a, b)
-        samples.append((time.perf_counter_ns() - t0) / 50 / 1e3)
-    return {"load_avg_1min": os.getloadavg()[0], "ref_numpy_op_us": float(np.median(samples))}
 
 
 def accuracy(rec: Any) -> dict[str, float]:
@@ -734,9 +695,9 @@ def main(argv: list[str] | None = None) -> int:
                        progress=lambda t_us: bar.update(t_us / 1e6 - bar.n))
     run_s = time.perf_counter() - t0
     acc = accuracy(rec)
-    load_before = machine_load()
+    load_before = machine_load(200)
     node_ms, cpu_ms, upd_ms = time_ticks(rec.packets)
-    load = machine_load()
+    load = machine_load(200)
     load = {k: max(load[k], load_before[k]) for k in load}
     figures: dict[str, Any] = {
         "description": f"scripted '{args.motion}' run of {args.seconds:g} s (real MuJoCo sim, "
@@ -811,9 +772,9 @@ def main(argv: list[str] | None = None) -> int:
         variants: dict[str, Path | None] = {"this": None}
         if args.baseline:
             variants = {"baseline": baseline_root(args.baseline), "this": None}
-        load_before = machine_load()
+        load_before = machine_load(200)
         live = live_run(rec.packets, variants, args.live_seconds, args.live_repeats)
-        load_after = machine_load()
+        load_after = machine_load(200)
         names = list(variants)
         figures.update(live_figures(live, names))
         figures["live_segment_s"] = args.live_seconds

@@ -28,7 +28,6 @@ from typing import Any
 import numpy as np
 
 from tools.benchmarks.common import (
-    DirectInbox,
     extract_tree,
     print_table,
     progress,
@@ -39,21 +38,6 @@ from tools.benchmarks.common import (
 DEADLINE_MS = 1.0
 
 
-class _Published:
-    """The MPFC node's context for a direct call: keeps the last message of each output."""
-
-    def __init__(self) -> None:
-        self.out: dict[str, Any] = {}
-
-    def due(self, role: str) -> bool:  # no decimation outside the runners
-
-        return True
-
-
-    def publish(self, role: str, msg: Any) -> None:
-        self.out[role] = msg
-
-
 def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, Any, Any]]:
     """Run the OSC closed loop in MuJoCo and keep (t, q, v, plan, command) of every tick."""
     import mujoco
@@ -61,8 +45,8 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     from lcmtypes import command_t, robot_state_t
     from processes.osc.controller import SAFE, OscController
     from processes.osc.model import load_cassie, standing_pose
-    from runtime.builder import build_node
     from runtime.config import HW_CONFIG_DIR, load_profile
+    from runtime.driver import NodeDriver
 
     m = load_cassie()
     m.opt.impratio = 10.0
@@ -71,8 +55,7 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
     mujoco.mj_forward(m, d)
     osc = OscController()
     profile = load_profile(HW_CONFIG_DIR / "sim.yaml")
-    mpfc = build_node(profile.processes["mpfc"], profile)
-    ctx, inbox = _Published(), DirectInbox("state")
+    mpfc = NodeDriver.from_config(profile.processes["mpfc"], profile)
     cmd = command_t()
     cmd.mode = 1
     cmd.vx = 0.375
@@ -88,9 +71,8 @@ def _record(kind: str, ticks: int) -> list[tuple[float, np.ndarray, np.ndarray, 
                 s.header.utime = round(t * 1e6)
                 s.num_positions, s.num_velocities = m.nq, m.nv
                 s.q, s.v = d.qpos.tolist(), d.qvel.tolist()
-                inbox.messages["state"], inbox.messages["command"] = s, cmd
-                mpfc.tick(ctx, inbox)
-                plan = ctx.out["plan"]
+                mpfc.tick(state=s, command=cmd)
+                plan = mpfc.sent["plan"][-1]
         cmd.yaw_rate = -2.0 * osc.model.pelvis_yaw() if k > 0 else 0.0  # operator steering
         c = None
         if kind == "walking":
@@ -280,13 +262,15 @@ def tight_optimum(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     return s.result.x.copy() if s.solve().value == 1 else None
 
 
-def _kkt(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray, G: np.ndarray,
-         x: np.ndarray) -> float:
-    """Stationarity residual of x, relative to the size of its terms: P x + c + A' lam with
-    lam >= 0 of the constraints active at x (within 1e-7) from non-negative least squares
-    (0 at an exact optimum, up to rounding)."""
+def kkt_residual(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                 G: np.ndarray, x: np.ndarray) -> tuple[float, float, int]:
+    """An optimality check of x independent of the solver that found it: (largest constraint
+    violation, stationarity residual relative to the size of its terms, active constraints).
+    The residual is P x + c + A' lam with lam >= 0 of the constraints active at x (within
+    1e-7) from non-negative least squares: 0 at an exact optimum, up to rounding."""
     from scipy.optimize import nnls
 
+    viol = max(float((lo - x).max()), float((x - hi).max()), float((G @ x).max()))
     n = len(x)
     eye = np.eye(n)
     act = [-eye[i] for i in range(n) if x[i] - lo[i] < 1e-7]
@@ -296,9 +280,9 @@ def _kkt(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray, G: np.nda
     scale = float((np.abs(P) @ np.abs(x) + np.abs(c)).max())
     if act:
         A = np.array(act)
-        lam, _ = nnls(A.T, -grad)
+        lam, _ = nnls(A.T, -grad)  # grad + A' lam = 0, lam >= 0
         grad = grad + A.T @ lam
-    return float(np.abs(grad).max()) / scale
+    return viol, float(np.abs(grad).max()) / scale, len(act)
 
 
 def _gap(P: np.ndarray, c: np.ndarray, x: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
@@ -314,13 +298,13 @@ def _versus_optimum(solved: list[tuple[np.ndarray, ...]], desc: str = "QPs vs op
     du, ex, kkt, kkt_ref = [], [], [], []
     with progress(len(solved), desc, unit="QP") as bar:  # untimed, and slow: a tight solve each
         for P, c, lo, hi, G, x in solved:
-            kkt.append(_kkt(P, c, lo, hi, G, x))
+            kkt.append(kkt_residual(P, c, lo, hi, G, x)[1])
             ref = tight_optimum(P, c, lo, hi, G)
             if ref is not None:
                 d, e = _gap(P, c, x, ref)
                 du.append(d)
                 ex.append(e)
-                kkt_ref.append(_kkt(P, c, lo, hi, G, ref))
+                kkt_ref.append(kkt_residual(P, c, lo, hi, G, ref)[1])
             bar.update(1)
     return du, ex, kkt, kkt_ref
 

@@ -45,6 +45,7 @@ from tools.benchmarks.common import (
     REPO,
     extract_tree,
     free_udp_port,
+    machine_load,
     print_table,
     say,
     until_sigterm,
@@ -90,18 +91,6 @@ def pin(cpus: Sequence[int] | None, fifo: int | None) -> list[str]:
         except OSError as exc:
             notes.append(f"SCHED_FIFO {fifo} failed: {exc.strerror}")
     return notes
-
-
-def machine_load() -> dict[str, float]:
-    """Load average and the cost of one tiny numpy op (us; a quiet VM: about 0.4-0.5)."""
-    a, b = np.zeros(3), np.ones(3)
-    samples = []
-    for _ in range(100):
-        t0 = time.perf_counter_ns()
-        for _ in range(50):
-            np.add(a, b)
-        samples.append((time.perf_counter_ns() - t0) / 50 / 1e3)
-    return {"load_avg_1min": os.getloadavg()[0], "ref_numpy_op_us": float(np.median(samples))}
 
 
 def collect_timing(child: subprocess.Popen[str], url: str, process: str,
@@ -185,6 +174,18 @@ def loop_figures(msgs: list[Any], warmup_s: float) -> dict[str, Any]:
         "_counter": counter,
     }
     return out
+
+
+#: the table rows (label, figure key) of ``loop_figures``' per-tick figures, first in every
+#: live benchmark's table
+LOOP_ROWS = (
+    ("CPU share of a core", "cpu_share"),
+    ("tick CPU median (ms)", "tick_cpu_median_ms"),
+    ("tick CPU p90 (ms)", "tick_cpu_p90_ms"),
+    ("tick CPU p99 (ms)", "tick_cpu_p99_ms"),
+    ("tick wall median (ms)", "tick_median_ms"),
+    ("tick wall p99 (ms)", "tick_p99_ms"),
+)
 
 
 def public(fig: dict[str, Any]) -> dict[str, Any]:
@@ -351,6 +352,84 @@ def start_contender(mb: float, cpus: list[int], module: str) -> subprocess.Popen
     return p
 
 
+def run_live(tree: str | None, name: str, seconds: float, udp_ports: dict[str, int],
+             params: dict[str, Any] | None = None) -> int:
+    """A benchmark's child: the process ``name`` of ``tree``'s ``hw_config/sim.yaml`` (None:
+    this one's) under the live runner for ``seconds``, scheduled as ``cassie run`` does, each
+    role of ``udp_ports`` moved to UDP on 127.0.0.1 at that port, ``params`` laid over its
+    own."""
+    root = use_tree(tree)
+    import importlib
+    import logging
+
+    from runtime.config import load_profile
+    from runtime.config_types import ChannelConfig
+    from runtime.loops import LiveRunner
+    from runtime.scheduling import apply_scheduling
+
+    logging.basicConfig(level=logging.WARNING, format="%(name)s %(levelname)s: %(message)s")
+    profile = load_profile(root / "hw_config" / "sim.yaml")
+    proc = profile.processes[name]
+
+    def moved(ports: dict[str, Any]) -> dict[str, Any]:
+        out = dict(ports)
+        for role, port in udp_ports.items():
+            if role in ports:
+                out[role] = ChannelConfig(ports[role].key, f"udp:127.0.0.1:{port}",
+                                          ("127.0.0.1", port))
+        return out
+
+    proc = dataclasses.replace(proc, inputs=moved(proc.inputs), outputs=moved(proc.outputs),
+                               params={**proc.params, **(params or {})})
+    profile = dataclasses.replace(profile, processes={**profile.processes, name: proc})
+    for note in apply_scheduling(proc):
+        if "failed" in note:
+            print(note, file=sys.stderr)
+    node = importlib.import_module("runtime.builder").build_node(proc, profile)
+    return LiveRunner(node, proc, profile).run(duration_s=seconds)
+
+
+def run_figures(what: str, child: subprocess.Popen[str], err: str, msgs: list[Any],
+                warmup_s: float) -> tuple[dict[str, Any], Callable[[str], float]]:
+    """The figures of a finished run of ``child`` (the ``what`` timed; its stderr ``err``)
+    from its TIMING ``msgs`` (``loop_figures``), and ``delta(counter)``: how much one of its
+    counters grew over them. SystemExit, with the end of its log, when it failed or said
+    nothing after the warm-up; the lines of the log that say something failed are shown."""
+    if child.returncode != 0:
+        raise SystemExit(f"the {what} exited with {child.returncode}:\n{err[-3000:]}")
+    fig = loop_figures(msgs, warmup_s)
+    if fig.get("windows", 0) < 2:
+        raise SystemExit(f"no TIMING from the {what} after the warm-up:\n{err[-3000:]}")
+    c, first, last = fig.pop("_counter"), fig.pop("_first"), fig.pop("_last")
+    for ln in [ln for ln in err.splitlines() if "failed" in ln or "Error" in ln][:5]:
+        print(f"{what}:", ln, file=sys.stderr)
+    return fig, lambda counter: c(last, counter) - c(first, counter)
+
+
+def add_live_options(ap: argparse.ArgumentParser, what: str, shares: str,
+                     roles: Sequence[str], extra: Callable[[], object] = lambda: None) -> None:
+    """The options of a live benchmark of ``what``: figures, durations, repeats, ``extra()``'s
+    own, the contender on its CPU (which ``shares`` in the stack) and the baseline; then its
+    children's (hidden): ``--role`` (one of ``roles``), ``--tree``, ``--cpus``, ``--fifo``,
+    ``--mb``."""
+    ap.add_argument("--json", metavar="FILE", help="write the figures as one flat JSON object")
+    ap.add_argument("--seconds", type=float, default=5.0,
+                    help="timed seconds of each run (after the warm-up; default 5)")
+    ap.add_argument("--warmup", type=float, default=1.0, help="seconds left out at the start")
+    ap.add_argument("--repeats", type=int, default=2, help="runs of each variant (default 2)")
+    extra()
+    ap.add_argument("--contend", metavar="MB", type=float, default=8.0,
+                    help=f"a nice-19 process on the {what}'s CPU sweeping MB of memory, as "
+                         f"{shares} share that CPU in the stack (default 8; 0: none)")
+    ap.add_argument("--baseline", metavar="REV",
+                    help=f"also run the {what} of git revision REV, interleaved with this tree's")
+    ap.add_argument("--role", choices=tuple(roles), help=argparse.SUPPRESS)
+    ap.add_argument("--tree", help=argparse.SUPPRESS)
+    ap.add_argument("--cpus", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--fifo", type=int, default=0, help=argparse.SUPPRESS)
+    ap.add_argument("--mb", type=float, default=0.0, help=argparse.SUPPRESS)
+
+
 # -- this benchmark's processes --------------------------------------------------------------
 
 
@@ -395,31 +474,11 @@ def _sim(tree: str | None, out_port: int, in_port: int, seconds: float, terrain:
          camera: bool) -> int:
     """The sim of ``tree``'s ``hw_config/sim.yaml`` under the live runner, its UDP links moved
     to the benchmark's ports."""
-    root = use_tree(tree)
-    import importlib
-    import logging
-
-    from runtime.config import load_profile
-    from runtime.config_types import ChannelConfig
-    from runtime.loops import LiveRunner
-    from runtime.scheduling import apply_scheduling
-
-    logging.basicConfig(level=logging.WARNING, format="%(name)s %(levelname)s: %(message)s")
-    profile = load_profile(root / "hw_config" / "sim.yaml")
-    proc = profile.processes["sim"]
-    out_ch = ChannelConfig("robot_output", f"udp:127.0.0.1:{out_port}", ("127.0.0.1", out_port))
-    in_ch = ChannelConfig("robot_input", f"udp:127.0.0.1:{in_port}", ("127.0.0.1", in_port))
-    params = {**proc.params, "terrain": terrain}
+    params: dict[str, Any] = {"terrain": terrain}
     if camera:
         params["camera_render"] = "process"
-    proc = dataclasses.replace(proc, inputs={**proc.inputs, "command": in_ch},
-                               outputs={**proc.outputs, "robot_output": out_ch}, params=params)
-    profile = dataclasses.replace(profile, processes={**profile.processes, "sim": proc})
-    for note in apply_scheduling(proc):
-        if "failed" in note:
-            print(note, file=sys.stderr)
-    node = importlib.import_module("runtime.builder").build_node(proc, profile)
-    return LiveRunner(node, proc, profile).run(duration_s=seconds)
+    return run_live(tree, "sim", seconds, {"robot_output": out_port, "command": in_port},
+                    params)
 
 
 def _run_once(tree: Path | None, args: argparse.Namespace, nuc_cpus: list[int],
@@ -451,41 +510,26 @@ def _run_once(tree: Path | None, args: argparse.Namespace, nuc_cpus: list[int],
         peer_out, peer_err = stop_child(peer)
         if hog is not None:
             stop_child(hog)
-    if sim.returncode != 0:
-        raise SystemExit(f"the sim exited with {sim.returncode}:\n{sim_err[-3000:]}")
-    fig = loop_figures(msgs, args.warmup)
-    if fig.get("windows", 0) < 2:
-        raise SystemExit(f"no TIMING from the sim after the warm-up:\n{sim_err[-3000:]}")
-    c, first, last = fig.pop("_counter"), fig.pop("_first"), fig.pop("_last")
-    wall = fig["wall_s"]
-    fig["realtime_factor"] = (c(last, "sim_time_s") - c(first, "sim_time_s")) / wall
+    fig, delta = run_figures("sim", sim, sim_err, msgs, args.warmup)
+    fig["realtime_factor"] = delta("sim_time_s") / fig["wall_s"]
     for name, key in (("lost_slots", "lost_slots"), ("catch_up_steps", "catch_up_steps"),
                       ("overruns", "sim_overruns")):
-        fig[key] = int(c(last, name) - c(first, name))
+        fig[key] = int(delta(name))
     fig["overrun_ratio"] = fig["overruns"] / max(fig["overruns"] + fig["ticks"], 1)
     try:
         pr = json.loads(peer_out.strip().splitlines()[-1])
-        fig["packets_lost_by_peer"] = int(c(last, "commands_lost") - c(first, "commands_lost"))
+        fig["packets_lost_by_peer"] = int(delta("commands_lost"))
         fig["peer_received"] = pr["received"]
         fig["round_trip_max_cycles"] = pr["max_round_trip_cycles"]
         if pr["notes"]:
             print("peer:", "; ".join(pr["notes"]), file=sys.stderr)
     except (ValueError, IndexError, KeyError):
         print(f"peer: no summary ({peer_err.strip()[-500:]})", file=sys.stderr)
-    if sim_err.strip():
-        warn = [ln for ln in sim_err.splitlines() if "failed" in ln or "Error" in ln]
-        for ln in warn[:5]:
-            print("sim:", ln, file=sys.stderr)
     return fig
 
 
 ROWS = (
-    ("CPU share of a core", "cpu_share"),
-    ("tick CPU median (ms)", "tick_cpu_median_ms"),
-    ("tick CPU p90 (ms)", "tick_cpu_p90_ms"),
-    ("tick CPU p99 (ms)", "tick_cpu_p99_ms"),
-    ("tick wall median (ms)", "tick_median_ms"),
-    ("tick wall p99 (ms)", "tick_p99_ms"),
+    *LOOP_ROWS,
     ("start lateness p99 (ms)", "late_p99_ms"),
     ("real-time factor", "realtime_factor"),
     ("slots skipped (overruns)", "overruns"),
@@ -498,26 +542,15 @@ ROWS = (
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="cassie bench sim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--json", metavar="FILE", help="write the figures as one flat JSON object")
-    ap.add_argument("--seconds", type=float, default=5.0,
-                    help="timed seconds of each run (after the warm-up; default 5)")
-    ap.add_argument("--warmup", type=float, default=1.0, help="seconds left out at the start")
-    ap.add_argument("--repeats", type=int, default=2, help="runs of each variant (default 2)")
-    ap.add_argument("--terrain", default="flat", help="terrain (default: flat, as sim.yaml)")
-    ap.add_argument("--camera", action="store_true",
-                    help="with the depth camera rendering in its child process (sim.yaml "
-                         "turns it off)")
-    ap.add_argument("--contend", metavar="MB", type=float, default=8.0,
-                    help="a nice-19 process on the sim's CPU sweeping MB of memory, as the "
-                         "laptop's solvers share that CPU in the stack (default 8; 0: none)")
-    ap.add_argument("--baseline", metavar="REV",
-                    help="also run the sim of git revision REV, interleaved with this tree's")
-    ap.add_argument("--role", choices=("peer", "sim", "contend"), help=argparse.SUPPRESS)
-    ap.add_argument("--mb", type=float, default=0.0, help=argparse.SUPPRESS)
+
+    def sim_options() -> None:
+        ap.add_argument("--terrain", default="flat", help="terrain (default: flat, as sim.yaml)")
+        ap.add_argument("--camera", action="store_true",
+                        help="with the depth camera rendering in its child process (sim.yaml "
+                             "turns it off)")
+
+    add_live_options(ap, "sim", "the laptop's solvers", ("peer", "sim", "contend"), sim_options)
     ap.add_argument("--ports", type=int, nargs=2, help=argparse.SUPPRESS)
-    ap.add_argument("--tree", help=argparse.SUPPRESS)
-    ap.add_argument("--cpus", default="", help=argparse.SUPPRESS)
-    ap.add_argument("--fifo", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.role == "peer":
         return _peer(*args.ports, [int(c) for c in args.cpus.split(",") if c], args.fifo,
