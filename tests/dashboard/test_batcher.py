@@ -21,12 +21,19 @@ from tools.dashboard.wire import fingerprint, read_headers
 T0 = time.monotonic_ns()  # send times near now: others are taken for another host's clock
 
 
-def _run(tmp_path: Path, batches: list[dict[str, list[bytes]]], **kw: object) -> Recording:
+def _run(tmp_path: Path, batches: list[dict[str, list[bytes]]], skeleton: object = None,
+         **kw: object) -> Recording:
+    """The dashboard's static set-up (the robot's meshes too, with a meshed ``skeleton``) and
+    its batcher over ``batches``, into a recording read back."""
+    from tools.dashboard.robot import log_meshes
+
     path = tmp_path / "unit.rrd"
     rec = rr.RecordingStream("dashboard_unit_test")
     rec.save(path, default_blueprint=build_blueprint())
     log_static(rec)
-    b = Batcher(rec, Channels(), skeleton=None, **kw)  # type: ignore[arg-type]
+    if skeleton is not None and skeleton.has_meshes:  # type: ignore[attr-defined]
+        log_meshes(rec, skeleton)  # type: ignore[arg-type]
+    b = Batcher(rec, Channels(), skeleton=skeleton, **kw)  # type: ignore[arg-type]
     for batch in batches:
         b.process(batch)
     b.process({}, flush=True)

@@ -13,10 +13,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from tests.dashboard import fake_stack
-from tests.dashboard.rrd import Recording, read_rrd
-from tools.dashboard.blueprint import LEGS_ENTITY, TRACKED_ENTITY, build_blueprint, log_static
-from tools.dashboard.channels import Channels
-from tools.dashboard.convert import Batcher
+from tests.dashboard.rrd import Recording
+from tools.dashboard.blueprint import LEGS_ENTITY, TRACKED_ENTITY, build_blueprint
 from tools.dashboard.robot import (
     FRAME_PREFIX,
     FRAMES_ENTITY,
@@ -24,7 +22,6 @@ from tools.dashboard.robot import (
     VISIBLE_GROUPS,
     Skeleton,
     load_skeleton,
-    log_meshes,
 )
 
 T0 = time.monotonic_ns()
@@ -55,21 +52,10 @@ def _gt_batches(
 def _record(
     tmp_path: Path, skeleton: Skeleton | None, batches: list[dict[str, list[bytes]]]
 ) -> Recording:
-    """Run the dashboard's static set-up and batcher into a recording and read it back."""
-    path = tmp_path / "robot.rrd"
-    rec = rr.RecordingStream("dashboard_robot_test")
-    rec.save(path, default_blueprint=build_blueprint())
-    log_static(rec)
-    if skeleton is not None and skeleton.has_meshes:
-        log_meshes(rec, skeleton)
-    b = Batcher(rec, Channels(), skeleton=skeleton)
-    for batch in batches:
-        b.process(batch)
-    b.process({}, flush=True)
-    rec.flush()
-    rec.disconnect()
-    assert not b.errors, b.errors
-    return read_rrd(path)
+    """The dashboard's static set-up and batcher into a recording, read back."""
+    from tests.dashboard.test_batcher import _run
+
+    return _run(tmp_path, batches, skeleton=skeleton)
 
 
 def _visible_mesh_geoms(model: mujoco.MjModel) -> list[int]:
