@@ -265,6 +265,7 @@ class Supervisor:
         self.stop_requested = False
         self._next_standby_at = 0.0
         self._noted: dict[str, str] = {}  # the state last printed of each process
+        self._noted_pid: dict[str, int] = {}  # ... and its pid
         #: pid -> pidfd of each running child: the main loop wakes on a child's exit
         self._pidfds: dict[int, int] = {}
         self._status_seq = 0
@@ -755,13 +756,19 @@ class Supervisor:
         """One line per process whose state changed since the last call: the start-up and
         every crash, restart or take-over show as they happen, not at the next table."""
         for name, child in self.children.items():
-            if self._noted.get(name) != child.state:
+            pid = child.pid
+            # a new copy in the same state is news too: a deputy's standby that took over
+            # between two of its status messages shows here as ready -> ready with a new pid
+            replaced = bool(self._noted_pid.get(name)) and pid and self._noted_pid[name] != pid
+            if self._noted.get(name) != child.state or replaced:
                 was = self._noted.get(name, "-")
                 self._noted[name] = child.state
                 why = f" ({child.detail})" if child.detail else ""
-                pid = f", pid {child.pid}" if child.popen is not None else ""
+                pid_text = f", pid {pid}" if pid else ""
                 self.out.write(f"[{time.monotonic() - self.t0:6.1f} s] {name}: {was} -> "
-                               f"{child.state}{pid}{why}\n")
+                               f"{child.state}{pid_text}{why}\n")
+            if pid:
+                self._noted_pid[name] = pid
 
     def _wait_ready(self, child: Child) -> bool:
         deadline = time.monotonic() + child.proc.ready_timeout_s
