@@ -41,6 +41,7 @@ from lcmtypes import deputy_orders_t, deputy_status_t
 from runtime.bus import NETWORK, Bus
 from runtime.errors import ConfigError
 from runtime.pairing import message_signed, sign_message
+from runtime.port_buffer import worth_logging
 from runtime.scheduling import normal_priority, rt_priority
 
 if TYPE_CHECKING:
@@ -147,8 +148,7 @@ class DeputyLink:
         state = str(p.state)  # type: ignore[attr-defined]
         if pid != child.remote_pid and state in ("starting", "ready"):
             # a new copy (a restart, its standby): ready once its own TIMING comes
-            child.state, child.started_at, child.ready_at = "starting", time.monotonic(), 0.0
-            child.last_msg_ns, child.status, child.health, child.timing_mark = 0, "", 0, 0
+            child.new_copy(time.monotonic())
         elif state not in ("starting", "ready") and (child.want or state != "stopping"):
             child.state = state
         child.remote_pid = pid
@@ -215,15 +215,10 @@ class DeputyLink:
     def start(self, child: Child) -> None:
         child.want = True
         child.run_id += 1
-        child.state, child.started_at, child.ready_at = "starting", time.monotonic(), 0.0
-        child.last_msg_ns, child.status, child.health, child.detail = 0, "", 0, ""
-        child.timing_mark = 0
+        child.new_copy(time.monotonic())
+        child.detail = ""
         child.log_path = self.sup.log_dir / f"{child.proc.name}.log"
         self.send(force=True)
-
-    def restart(self, child: Child) -> None:
-        """An ordered restart: a new run id (the deputy counts it)."""
-        self.start(child)
 
     def stop(self, child: Child, timeout_s: float) -> None:
         """Stop ``child`` and wait (up to ``timeout_s``) until its deputy says it has."""
@@ -328,7 +323,7 @@ class Deputy:
 
     def _refused(self, why: str) -> None:
         self.refused += 1
-        if self.refused in (1, 10, 100) or self.refused % 1000 == 0:
+        if worth_logging(self.refused, every=1000):
             self.say(f"ignored #{self.refused}: {why}")
 
     def _begin(self, msg: deputy_orders_t) -> None:

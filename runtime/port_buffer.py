@@ -18,10 +18,10 @@ Policy = Literal["newest", "each"]
 log = logging.getLogger(__name__)
 
 
-def worth_logging(count: int) -> bool:
-    """Whether the ``count``-th bad message of a port is logged: the 1st, 10th, 100th and
-    1000th, then every 10000th (a flood must not flood the log)."""
-    return count in (1, 10, 100, 1000) or count % 10000 == 0
+def worth_logging(count: int, every: int = 10000) -> bool:
+    """Whether the ``count``-th bad message is logged: the 1st, 10th, 100th and 1000th, then
+    every ``every``-th (a flood must not flood the log)."""
+    return count in (1, 10, 100, 1000) or count % every == 0
 
 
 class PortBuffer:

@@ -55,6 +55,7 @@ from runtime.config import check_depends
 from runtime.config_types import ProcessConfig, Profile, RestartPolicy
 from runtime.node import HEALTH_FAULT
 from runtime.pairing import TIMING_KEY_ENV, TOKEN_ENV, message_signed
+from runtime.port_buffer import worth_logging
 from runtime.scheduling import pin_to_supervisor_host, rt_priority
 from runtime.succession import create_lock, lock_path
 from runtime.supervisor_resources import CpuShare, ResourceSampler
@@ -189,6 +190,13 @@ class Child:
     def pid(self) -> int:
         return self.popen.pid if self.popen is not None else self.remote_pid
 
+    def new_copy(self, now: float) -> None:
+        """A new copy of the process is starting (a start, a standby's take-over, a remote
+        restart): nothing its predecessor reported counts for it, and it is ready on its own
+        first TIMING."""
+        self.state, self.started_at, self.ready_at = "starting", now, 0.0
+        self.last_msg_ns, self.status, self.health, self.timing_mark = 0, "", 0, 0
+
     def alive(self) -> bool:
         if self.remote:
             return self.remote_pid > 0 and self.state in ("starting", "ready")
@@ -311,7 +319,7 @@ class Supervisor:
         100th, then every 1000th)."""
         n = self.refused[what] = self.refused.get(what, 0) + 1
         self.refused_last[what] = why
-        if n in (1, 10, 100) or n % 1000 == 0:
+        if worth_logging(n, every=1000):
             self.out.write(f"ignored {what} #{n}: {why}\n")
 
     def _decoded(self, msg_type: Any, data: bytes, what: str) -> Any | None:
@@ -527,8 +535,7 @@ class Supervisor:
             os.close(child.standby_pipe)
             child.standby_pipe = -1
         child.popen = sb
-        child.state, child.started_at, child.ready_at = "starting", now, 0.0
-        child.last_msg_ns, child.status, child.health, child.timing_mark = 0, "", 0, 0
+        child.new_copy(now)
         child.takeovers += 1
         child.detail = f"{how}; its standby took over"
         try:
@@ -568,13 +575,7 @@ class Supervisor:
             f"\n=== start {time.strftime('%H:%M:%S')} (restart {child.restarts}) ===\n".encode()
         )
         child.popen = self._spawn(child, self._command(child), subprocess.DEVNULL)
-        child.state = "starting"
-        child.started_at = time.monotonic()
-        child.ready_at = 0.0
-        child.last_msg_ns = 0
-        child.timing_mark = 0
-        child.status = ""
-        child.health = 0
+        child.new_copy(time.monotonic())
         child.detail = ""
         try:
             child.ps = psutil.Process(child.popen.pid)
