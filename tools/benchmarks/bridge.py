@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import socket
 import time
 from pathlib import Path
@@ -217,7 +216,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "contend":
         return contend(args.mb, cpus)
 
-    os.environ.setdefault("MENAGERIE_ROOT", "/work/shared/menagerie")
     from runtime.config import load_profile
 
     profile = load_profile(REPO / "hw_config" / "sim.yaml")

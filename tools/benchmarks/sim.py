@@ -322,7 +322,12 @@ def stop_child(p: subprocess.Popen[str], timeout_s: float = 5.0) -> tuple[str, s
 def child_env(url: str) -> dict[str, str]:
     env = dict(os.environ)
     env["CASSIE_LCM_URL"] = url
-    env.setdefault("MENAGERIE_ROOT", "/work/shared/menagerie")
+    # where the model is, for a baseline revision's loader too (it reads only the variable);
+    # imported here: a benchmark's child must import runtime from its own tree (use_tree)
+    from runtime.robot import menagerie_root
+
+    if (root := menagerie_root()) is not None:
+        env.setdefault("MENAGERIE_ROOT", str(root))
     env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     return env
 
@@ -560,7 +565,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "sim":
         return _sim(args.tree, *args.ports, args.seconds, args.terrain, args.camera)
 
-    os.environ.setdefault("MENAGERIE_ROOT", "/work/shared/menagerie")
     from runtime.config import load_profile
 
     profile = load_profile(REPO / "hw_config" / "sim.yaml")
