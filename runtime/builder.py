@@ -31,8 +31,12 @@ def process_module(proc: ProcessConfig) -> Any:
 
 
 def read_config(proc: ProcessConfig, module: Any) -> tuple[Any, Any]:
-    """(params, gains) of ``proc`` as its module's ``Params`` and ``Gains``."""
-    params = read(module.Params, proc.params, proc.source_file, key=proc.key("params"))
+    """(params, gains) of ``proc`` as its module's ``Params`` and ``Gains``; an error in a
+    param a profile's ``overrides:`` wrote names that profile (``ProcessConfig.blame``)."""
+    try:
+        params = read(module.Params, proc.params, proc.source_file, key=proc.key("params"))
+    except ConfigError as exc:
+        raise proc.blame(exc) from None
     gains_cls = getattr(module, "Gains", None)
     if gains_cls is None:
         if proc.gains_file:
@@ -60,13 +64,17 @@ def apply_rates(node: Node, proc: ProcessConfig) -> None:
 def build_node(proc: ProcessConfig, profile: Profile, module: Any = None) -> Node:
     """``proc``'s node, its params and gains checked first; a ConfigError names the file.
     ``module``: build with this module instead of ``proc.module`` (a benchmark's copy of
-    another revision's)."""
+    another revision's). An error about a value a profile's ``overrides:`` wrote names that
+    profile and the override's key."""
     module = process_module(proc) if module is None else module
     if not hasattr(module, "make_node"):
         raise ConfigError(str(proc.source_file), proc.key("module"),
                           f"{proc.module} has no make_node and runs no node",
                           "a module with make_node(proc, profile, params, gains)")
-    if hasattr(module, "Params"):
-        params, gains = read_config(proc, module)
-        return module.make_node(proc, profile, params, gains)
-    return module.make_node(proc, profile)
+    try:
+        if hasattr(module, "Params"):
+            params, gains = read_config(proc, module)
+            return module.make_node(proc, profile, params, gains)
+        return module.make_node(proc, profile)
+    except ConfigError as exc:  # (make_node's own checks of its params too)
+        raise proc.blame(exc) from None

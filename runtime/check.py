@@ -57,8 +57,8 @@ def check_profile(profile: Profile, names: list[str] | None = None) -> tuple[
             else:
                 out.node_type = "main (not checked: no check(proc, profile))"
                 roles = list(proc.outputs)
-        except ConfigError as exc:
-            out.error = str(exc)
+        except ConfigError as exc:  # (a main's check too: named where the value was written)
+            out.error = str(proc.blame(exc))
             continue
         except Exception as exc:  # whatever a broken file makes a constructor raise
             out.error = f"{type(exc).__name__}: {exc} (building {proc.module}.make_node)"

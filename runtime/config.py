@@ -3,7 +3,12 @@
 A launch profile is one YAML file that includes others (``include:``, relative to it). The
 sections ``lcm``, ``hosts``, ``channels`` and ``processes`` are merged entry by entry, later
 files winning; ``overrides`` in the profile patch single processes. Every value is checked here,
-at load time, and every error names the file, the dotted key and what is allowed.
+at load time, and every error names the file, the dotted key and what is allowed: each file
+shape is a frozen dataclass (``ProfileFile``, ``HostEntry``, ``ChannelEntry``, ``ProcessEntry``)
+read with ``runtime.params.read``, as a process's params and gains are, and the sections of
+user-named entries (hosts, channels, processes) are read entry by entry; what depends on the
+rest of the profile (a process's host, its channels) is checked once all is read. An error in a
+value that a profile's ``overrides:`` wrote names that profile and the override's key.
 The LCM URL can be overridden with the ``CASSIE_LCM_URL`` environment variable (tests use it
 to isolate runs on their own multicast port).
 """
@@ -14,8 +19,10 @@ import copy
 import importlib.util
 import ipaddress
 import os
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, TypeVar
 from urllib.parse import urlparse, urlunparse
 
 import yaml
@@ -24,64 +31,26 @@ from runtime.config_types import (
     NETWORK,
     ChannelConfig,
     HostConfig,
+    Mode,
     ProcessConfig,
     Profile,
     RestartPolicy,
+    blame_override,
 )
 from runtime.errors import ConfigError
+from runtime.params import read, spec
 from runtime.route import DEFAULT_URL
 
 __all__ = ["HW_CONFIG_DIR", "ConfigError", "find_profile", "load_profile", "load_yaml"]
 
 HW_CONFIG_DIR = Path(__file__).resolve().parent.parent / "hw_config"
+T = TypeVar("T")
 
-PROFILE_KEYS = {
-    "profile",
-    "description",
-    "include",
-    "mode",
-    "launch",
-    "overrides",
-    "timing_report_hz",
-    "rtf",
-    "lcm",
-    "hosts",
-    "channels",
-    "processes",
-    "supervisor",
-}
-PROCESS_KEYS = {
-    "host",
-    "module",
-    "rate_hz",
-    "deadline_ms",
-    "inputs",
-    "outputs",
-    "depends_on",
-    "ready",
-    "restart",
-    "required",
-    "cpu_affinity",
-    "nice",
-    "rt_priority",
-    "gc",
-    "max_rate_hz",
-    "output_rate_hz",
-    "params",
-    "gains",
-    "description",
-    "harness_delay_ms",
-    "limits",
-}
-RESTART_KEYS = {"policy", "max_restarts", "window_s", "backoff_initial_s", "backoff_max_s",
-                "standby"}
-MODES = ("realtime", "lockstep")
 #: how the hosts' local (ttl-0) traffic is kept apart on this one machine: ``ports`` gives each
 #: host a multicast port of its own (the network URL's port + the host's lcm_port_offset), as
 #: the real robot's ttl 0 keeps the NUC's 2 kHz traffic off the laptop; ``shared`` puts every
 #: host on the one network URL (every process hears everything)
 HOST_BUSES = ("ports", "shared")
-RESTART_POLICIES = ("always", "on-failure", "never")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -123,31 +92,10 @@ def load_yaml(path: Path) -> dict[str, Any]:
     return data
 
 
-# The three readers below are no process's own any more (each reads its params and gains as
-# runtime.params dataclasses, through runtime.builder): they stay for the benchmarks' baselines,
-# which import an older revision's process code beside this tree's runtime (e.g.
-# tools/benchmarks/estimator.py's baseline_state_estimator).
-
-
-def param_number(proc: ProcessConfig, name: str, *, default: Any = None,
-                 lo: float | None = None, hi: float | None = None, lo_open: bool = False,
-                 hint: str | None = None) -> Any:
-    """``proc.params[name]`` as a number within [lo, hi] (``default`` when absent or null);
-    otherwise a ``ConfigError`` naming the file, ``processes.NAME.params.KEY`` and the range
-    (with ``hint``, what the value is for). One reader for every process's numeric params."""
-    try:
-        return _Checker(proc.source_file).number(proc.params, proc.key("params"), name,
-                                                 default=default, lo=lo, hi=hi, lo_open=lo_open)
-    except ConfigError as exc:
-        if hint is None:
-            raise
-        allowed = f"{exc.allowed}: {hint}" if exc.allowed else hint
-        raise ConfigError(exc.file, exc.key, exc.problem, allowed) from None
-
-
-def param_bool(proc: ProcessConfig, name: str, default: bool) -> bool:
-    """``proc.params[name]`` as true or false, else a ``ConfigError`` naming the key."""
-    return _Checker(proc.source_file).boolean(proc.params, proc.key("params"), name, default)
+# process_gains is no process's own any more (each reads its params and gains as
+# runtime.params dataclasses, through runtime.builder): it stays for the estimator benchmark's
+# baseline, which imports an older revision's estimator beside this tree's runtime
+# (tools/benchmarks/estimator.py's baseline_state_estimator).
 
 
 def process_gains(proc: ProcessConfig, default: Path, allow_params: bool = False) -> Path:
@@ -209,104 +157,168 @@ def is_profile(path: Path) -> bool:
         return False
 
 
-class _Checker:
-    """Small typed accessors that raise ConfigError naming file and key."""
-
-    def __init__(self, file: Path | str) -> None:
-        self.file = str(file)
-
-    def fail(self, key: str, problem: str, allowed: str | None = None) -> ConfigError:
-        return ConfigError(self.file, key, problem, allowed)
-
-    def mapping(self, value: Any, key: str) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            raise self.fail(key, f"must be a mapping, got {value!r}")
-        return value
-
-    def known_keys(self, d: dict[str, Any], key: str, allowed: set[str]) -> None:
-        for k in d:
-            if k not in allowed:
-                raise self.fail(
-                    f"{key}.{k}" if key else str(k),
-                    "unknown key",
-                    allowed=", ".join(sorted(allowed)),
-                )
-
-    def _given(self, d: dict[str, Any], full: str, name: str, default: Any,
-               allowed: str | None = None) -> bool:
-        """Whether ``d`` gives ``name`` (a null counts as absent); absent with no ``default``
-        (``...``) is a ConfigError: ``full`` is required."""
-        if name in d and d[name] is not None:
-            return True
-        if default is ...:
-            raise self.fail(full, "is required", allowed)
-        return False
-
-    def number(
-        self,
-        d: dict[str, Any],
-        key: str,
-        name: str,
-        *,
-        default: Any = ...,
-        lo: float | None = None,
-        hi: float | None = None,
-        integer: bool = False,
-        lo_open: bool = False,
-    ) -> Any:
-        full = f"{key}.{name}" if key else name
-        if not self._given(d, full, name, default):
-            return default
-        v = d[name]
-        kind = "an integer" if integer else "a number"
-        if (
-            isinstance(v, bool)
-            or not isinstance(v, (int, float))
-            or (integer and not isinstance(v, int))
-        ):
-            raise self.fail(full, f"must be {kind}, got {v!r}", allowed=_range(lo, hi, lo_open))
-        if (
-            v != v
-            or (lo is not None and (v < lo or (lo_open and v == lo)))
-            or (hi is not None and v > hi)
-        ):
-            raise self.fail(full, f"out of range: {v!r}", allowed=_range(lo, hi, lo_open))
-        return int(v) if integer else float(v)
-
-    def string(
-        self,
-        d: dict[str, Any],
-        key: str,
-        name: str,
-        *,
-        default: Any = ...,
-        choices: tuple[str, ...] | None = None,
-    ) -> Any:
-        full = f"{key}.{name}" if key else name
-        allowed = ", ".join(choices) if choices else None
-        if not self._given(d, full, name, default, allowed):
-            return default
-        v = d[name]
-        if not isinstance(v, str) or not v:
-            raise self.fail(full, f"must be a non-empty string, got {v!r}", allowed=allowed)
-        if choices is not None and v not in choices:
-            raise self.fail(
-                full, f"{v!r} is not one of the allowed values", allowed=", ".join(choices)
-            )
-        return v
-
-    def boolean(self, d: dict[str, Any], key: str, name: str, default: bool) -> bool:
-        v = d.get(name, default)
-        if not isinstance(v, bool):
-            raise self.fail(f"{key}.{name}", f"must be true or false, got {v!r}", "true, false")
-        return v
+def _read(cls: type[T], data: Any, file: Path | str, key: str = "") -> T:
+    """``runtime.params.read`` with hw_config's one rule on top: a key set to null takes its
+    default (``rate_hz: ~`` in an override unsets the catalog's value)."""
+    if isinstance(data, Mapping):
+        data = {k: v for k, v in data.items() if v is not None}
+    return read(cls, data, file, key)
 
 
-def _range(lo: float | None, hi: float | None, lo_open: bool = False) -> str | None:
-    if lo is None and hi is None:
-        return None
-    left = "(" if lo_open else "["
-    return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}]"
+def _lcm_name(name: str, file: str, key: str) -> str:
+    """``name`` if it is a valid LCM channel name, else a ConfigError naming ``key``."""
+    if not name.replace("_", "").isalnum():
+        raise ConfigError(file, key, f"{name!r} is not a valid LCM channel name",
+                          "letters, digits and underscores")
+    return name
+
+
+def _some_cpus(cpus: tuple[int, ...] | None, owner: str, key: str) -> None:
+    """A ConfigError when a CPU list is empty: it would pin the process to no CPU (leave the
+    key out for any CPU)."""
+    if cpus == ():
+        raise ConfigError(owner, key, "must be a list of CPU numbers, got []",
+                          f"CPU numbers 0..{(os.cpu_count() or 1) - 1} on this machine")
+
+
+@dataclass(frozen=True)
+class LcmSection:
+    """``lcm:`` of a profile file: the network's URL and how the hosts' buses are kept apart
+    (each unset key leaves what an earlier file said)."""
+
+    url: str | None = None
+    host_buses: str | None = spec(None, choices=HOST_BUSES)
+
+    def __post_init__(self) -> None:
+        if self.url is not None and not self.url.startswith(("udpm://", "memq://")):
+            raise ConfigError("<LcmSection>", "url", f"{self.url!r} is not an LCM URL",
+                              "udpm://GROUP:PORT (or memq:// for one process)")
+
+
+@dataclass(frozen=True)
+class SupervisorSection:
+    """``supervisor:`` of a profile: the host it runs on and the channels it talks on."""
+
+    host: str | None = None  # a host of hosts.yaml (default: the laptop, when there is one)
+    status_channel: str = "SUPERVISOR_STATUS"
+    orders_channel: str = "SUPERVISOR_ORDERS"
+    timing_channel: str = "TIMING"
+    deputy_orders_channel: str = "DEPUTY_ORDERS"
+    deputy_status_channel: str = "DEPUTY_STATUS"
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name.endswith("_channel"):
+                _lcm_name(getattr(self, f.name), "<SupervisorSection>", f.name)
+
+
+@dataclass(frozen=True)
+class ProfileFile:
+    """One file of a launch profile (the profile, or a file it includes) as written. The
+    sections ``hosts``, ``channels`` and ``processes`` merge across the files entry by entry,
+    later files winning, and each entry is read on its own (``HostEntry``, ``_channel``,
+    ``ProcessEntry``); ``overrides`` patch processes, in include order; ``lcm`` keys hold
+    until a later file sets them; the other keys count in the profile's own file."""
+
+    profile: str | None = None  # the profile's name (default: its file's stem)
+    description: str = ""
+    include: tuple[str, ...] = ()  # files relative to this one, read before it
+    mode: Mode = "realtime"
+    launch: tuple[str, ...] | None = None  # the processes to launch: a profile names them
+    overrides: dict[str, dict[str, Any]] = spec(default_factory=dict)  # process -> its keys
+    timing_report_hz: float = spec(10.0, lo=0.1, hi=100.0, unit="Hz")
+    rtf: float = spec(1.0, lo=0.01, hi=1.0)  # sim seconds per wall second (realtime only)
+    lcm: LcmSection = field(default_factory=LcmSection)
+    hosts: dict[str, Any] = spec(default_factory=dict)  # name -> HostEntry
+    channels: dict[str, Any] = spec(default_factory=dict)  # key -> name, or ChannelEntry
+    processes: dict[str, Any] = spec(default_factory=dict)  # name -> ProcessEntry
+    supervisor: SupervisorSection = field(default_factory=SupervisorSection)
+
+    def __post_init__(self) -> None:
+        if self.rtf != 1.0 and self.mode != "realtime":
+            raise ConfigError("<ProfileFile>", "rtf", f"a real-time factor of {self.rtf:g} "
+                              "needs mode: realtime", "1.0 in lockstep")
+
+
+@dataclass(frozen=True)
+class HostEntry:
+    """One entry of ``hosts:`` (hosts.yaml): a computer of the robot, emulated on this one."""
+
+    address: str
+    description: str = ""
+    #: its own LCM domain: the network URL's port + this (a host without one gets the next
+    #: port in list order); below the instance step, so no port is the next instance's
+    lcm_port_offset: int = spec(0, lo=0, hi=INSTANCE_PORT_STEP - 1)
+    cpus: tuple[int, ...] | None = spec(None, lo=0)  # the CPUs standing in for its computer
+    deputy: bool = False  # its processes are run by `cassie deputy --host NAME` there
+
+    def __post_init__(self) -> None:
+        if not self.address:
+            raise ConfigError("<HostEntry>", "address", "must be a non-empty string, got ''")
+        _some_cpus(self.cpus, "<HostEntry>", "cpus")
+
+
+@dataclass(frozen=True)
+class ChannelEntry:
+    """One entry of ``channels:`` written as a mapping (a bare string is an LCM channel's
+    name): a UDP link ``udp: HOST:PORT``, or an LCM ``name`` with its ``scope``."""
+
+    udp: str | None = None  # HOST (a host of hosts.yaml, or an IPv4 address) : PORT
+    name: str | None = None
+    scope: str = ""  # network, host (the publisher's, as ""), or the name of a host
+
+
+@dataclass(frozen=True)
+class ReadyEntry:
+    """``ready:`` of a process: how long the supervisor waits for its first TIMING message."""
+
+    timeout_s: float = spec(15.0, lo=0.0, lo_open=True, unit="s")
+
+
+@dataclass(frozen=True)
+class ProcessEntry:
+    """One entry of ``processes:`` (processes.yaml, with the profiles' ``overrides:`` laid
+    over it) as written; ``_process`` checks it against the hosts and channels."""
+
+    host: str  # a host of hosts.yaml
+    module: str  # the Python module that runs it
+    description: str = ""
+    rate_hz: float | None = spec(None, lo=0.0, hi=100000.0, lo_open=True, unit="Hz")
+    deadline_ms: float | None = spec(None, lo=0.0, hi=60000.0, lo_open=True, unit="ms")
+    inputs: dict[str, str] = spec(default_factory=dict)  # role -> a key of channels.yaml
+    outputs: dict[str, str] = spec(default_factory=dict)
+    depends_on: tuple[str, ...] = ()
+    ready: ReadyEntry = field(default_factory=ReadyEntry)
+    restart: RestartPolicy = field(default_factory=RestartPolicy)
+    required: bool = True
+    cpu_affinity: tuple[int, ...] | None = spec(None, lo=0)  # default: its host's cpus
+    nice: int | None = spec(None, lo=-20, hi=19)
+    rt_priority: int | None = spec(None, lo=1, hi=99)
+    gc: Literal["on", "freeze"] = "freeze"
+    max_rate_hz: float | None = spec(None, lo=0.0, hi=100000.0, lo_open=True, unit="Hz")
+    #: output role -> at most this many messages per second of sim time
+    output_rate_hz: dict[str, float] = spec(default_factory=dict, lo=0.0, hi=100000.0,
+                                            lo_open=True, unit="Hz")
+    params: dict[str, Any] = spec(default_factory=dict)  # the module's Params (builder)
+    gains: str | None = None  # a gains file, relative to the file that names it
+    harness_delay_ms: float = spec(0.0, lo=0.0, hi=1000.0, unit="ms")
+    #: input role -> field -> [lo, hi] (or ``utime_step_s``: seconds): ``runtime.validate``
+    limits: dict[str, dict[str, Any]] = spec(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        _some_cpus(self.cpu_affinity, "<ProcessEntry>", "cpu_affinity")
+
+
+def _written(override: Mapping[str, Any], base: Any, at: str = "") -> Iterator[str]:
+    """The dotted keys an override laid over ``base`` writes: down to its values where it
+    merges into a mapping of ``base``, a whole value where ``base`` has none to merge into."""
+    for k, v in override.items():
+        path = f"{at}.{k}" if at else str(k)
+        below = base.get(k) if isinstance(base, Mapping) else None
+        if isinstance(v, Mapping) and v and isinstance(below, Mapping):
+            yield from _written(v, below, path)
+        else:
+            yield path
 
 
 def _merge(dst: dict[str, Any], src: dict[str, Any]) -> dict[str, Any]:
@@ -335,63 +347,40 @@ def load_profile(path: str | Path) -> Profile:
     stack: list[Path] = []
     all_overrides: list[tuple[str, dict[str, Any], Path]] = []  # in include order, top last
 
-    def absorb(file: Path, data: dict[str, Any]) -> None:
+    def absorb(file: Path) -> ProfileFile | None:
+        """Read ``file`` and, first, the files it includes (None: read already)."""
         nonlocal lcm_url, host_buses
-        ck = _Checker(file)
         if file in stack:
             chain = " -> ".join(p.name for p in [*stack, file])
-            raise ck.fail("include", f"files include each other in a cycle: {chain}")
+            raise ConfigError(str(file), "include", f"files include each other in a cycle: {chain}")
         if file in seen:  # included twice along different paths: once is enough
-            return
+            return None
         seen.append(file)
         stack.append(file)
-        ck.known_keys(data, "", PROFILE_KEYS)
-        includes = data.get("include", [])
-        if not isinstance(includes, list) or not all(isinstance(x, str) for x in includes):
-            raise ck.fail("include", f"must be a list of file names, got {includes!r}")
-        for inc in includes:
+        doc = _read(ProfileFile, load_yaml(file), file)
+        for inc in doc.include:
             inc_path = (file.parent / inc).resolve()
             if not inc_path.exists():
-                raise ck.fail(
+                raise ConfigError(
+                    str(file),
                     "include",
                     f"included file {inc!r} does not exist",
                     allowed=", ".join(sorted(p.name for p in file.parent.glob("*.yaml"))),
                 )
-            absorb(inc_path, load_yaml(inc_path))
-        if "overrides" in data:
-            for pname, value in ck.mapping(data["overrides"] or {}, "overrides").items():
-                all_overrides.append((str(pname), ck.mapping(value, f"overrides.{pname}"), file))
-        if "lcm" in data:
-            lcm = ck.mapping(data["lcm"], "lcm")
-            ck.known_keys(lcm, "lcm", {"url", "host_buses"})
-            if "url" in lcm:
-                url = ck.string(lcm, "lcm", "url")
-                if not (url.startswith("udpm://") or url.startswith("memq://")):
-                    raise ck.fail(
-                        "lcm.url",
-                        f"{url!r} is not an LCM URL",
-                        allowed="udpm://GROUP:PORT (or memq:// for one process)",
-                    )
-                lcm_url = (url, file)
-            if "host_buses" in lcm:
-                host_buses = (ck.string(lcm, "lcm", "host_buses", choices=HOST_BUSES), file)
-        for section in sections:
-            if section in data:
-                entries = ck.mapping(data[section], section)
-                for name, value in entries.items():
-                    sections[section][str(name)] = (value, file)
+            absorb(inc_path)
+        all_overrides.extend((pname, value, file) for pname, value in doc.overrides.items())
+        if doc.lcm.url is not None:
+            lcm_url = (doc.lcm.url, file)
+        if doc.lcm.host_buses is not None:
+            host_buses = (doc.lcm.host_buses, file)
+        for section, entries in sections.items():
+            for name, value in getattr(doc, section).items():
+                entries[name] = (value, file)
         stack.pop()
+        return doc
 
-    data = load_yaml(path)
-    absorb(path, data)
-    ck = _Checker(path)
-    name = ck.string(data, "", "profile", default=path.stem)
-    mode = ck.string(data, "", "mode", default="realtime", choices=MODES)
-    report_hz = ck.number(data, "", "timing_report_hz", default=10.0, lo=0.1, hi=100.0)
-    rtf = ck.number(data, "", "rtf", default=1.0, lo=0.01, hi=1.0)
-    if rtf != 1.0 and mode != "realtime":
-        raise ck.fail("rtf", f"a real-time factor of {rtf:g} needs mode: realtime",
-                      allowed="1.0 in lockstep")
+    top = absorb(path)
+    assert top is not None  # (the first file read)
     url = os.environ.get("CASSIE_LCM_URL") or (
         lcm_url[0] if lcm_url else DEFAULT_URL
     )
@@ -403,27 +392,9 @@ def load_profile(path: str | Path) -> Profile:
 
     hosts = {}
     for hname, (value, file) in sections["hosts"].items():
-        hc = _Checker(file)
-        h = hc.mapping(value, f"hosts.{hname}")
-        hc.known_keys(h, f"hosts.{hname}",
-                      {"address", "description", "lcm_port_offset", "cpus", "deputy"})
-        cpus = h.get("cpus")
-        if cpus is not None and (
-            not isinstance(cpus, list) or not cpus
-            or not all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in cpus)
-        ):
-            raise hc.fail(f"hosts.{hname}.cpus", f"must be a list of CPU numbers, got {cpus!r}",
-                          allowed=f"CPU numbers 0..{(os.cpu_count() or 1) - 1} on this machine")
-        hosts[hname] = HostConfig(
-            hname,
-            hc.string(h, f"hosts.{hname}", "address"),
-            str(h.get("description", "")),
-            # (below the instance step: a host's port must not be the next instance's)
-            hc.number(h, f"hosts.{hname}", "lcm_port_offset", default=0, lo=0,
-                      hi=INSTANCE_PORT_STEP - 1, integer=True),
-            tuple(cpus) if cpus else None,
-            hc.boolean(h, f"hosts.{hname}", "deputy", default=False),
-        )
+        h = _read(HostEntry, value, file, f"hosts.{hname}")
+        hosts[hname] = HostConfig(hname, h.address, h.description, h.lcm_port_offset, h.cpus,
+                                  h.deputy)
 
     channels = {
         cname: _channel(cname, value, file, hosts)
@@ -432,82 +403,91 @@ def load_profile(path: str | Path) -> Profile:
     for cname, (_, file) in sections["channels"].items():
         scope = channels[cname].scope
         if scope and scope != NETWORK and scope not in hosts:
-            raise _Checker(file).fail(f"channels.{cname}.scope", f"unknown scope {scope!r}",
-                                      allowed=", ".join(["network", "host", *sorted(hosts)]))
+            raise ConfigError(str(file), f"channels.{cname}.scope", f"unknown scope {scope!r}",
+                              allowed=", ".join(["network", "host", *sorted(hosts)]))
 
     for pname, _, ofile in all_overrides:
         if pname not in sections["processes"]:
-            raise _Checker(ofile).fail(
+            raise ConfigError(
+                str(ofile),
                 f"overrides.{pname}",
                 "no such process",
                 allowed=", ".join(sorted(sections["processes"])),
             )
     processes = {}
     for pname, (value, file) in sections["processes"].items():
-        raw = _Checker(file).mapping(value, f"processes.{pname}")
-        mine = [(ov, ofile) for name, ov, ofile in all_overrides if name == pname]
-        for ov, _ in mine:
-            raw = _merge(raw, ov)
+        raw, overridden = value, {}
+        for name, ov, ofile in all_overrides:
+            if name != pname:
+                continue
+            for k in _written(ov, raw):  # the last file to write a key is the one to blame
+                overridden.pop(k, None)
+                overridden[k] = ofile
+            raw = _merge(raw, ov) if isinstance(raw, dict) else raw
         try:
-            processes[pname] = _process(pname, raw, file, hosts, channels, hw_dir)
+            entry = _read(ProcessEntry, raw, file, f"processes.{pname}")
+            processes[pname] = _process(pname, entry, file, hosts, channels, overridden)
         except ConfigError as exc:
-            raise _blame_override(exc, pname, mine) from None
+            raise blame_override(exc, pname, overridden) from None
 
-    launch = data.get("launch")
-    if not isinstance(launch, list) or not launch or not all(isinstance(x, str) for x in launch):
-        raise ck.fail(
+    launch = top.launch
+    if not launch:
+        raise ConfigError(
+            str(path),
             "launch",
-            f"must be a non-empty list of process names, got {launch!r}",
+            "must be a non-empty list of process names, got "
+            f"{None if launch is None else list(launch)!r}",
             allowed=", ".join(sorted(processes)),
         )
     for i, pname in enumerate(launch):
         if pname not in processes:
-            raise ck.fail(
-                f"launch[{i}]", f"no process named {pname!r}", allowed=", ".join(sorted(processes))
-            )
+            raise ConfigError(str(path), f"launch[{i}]", f"no process named {pname!r}",
+                              allowed=", ".join(sorted(processes)))
     for pname in launch:
         for dep in processes[pname].depends_on:
             if dep not in launch:
-                raise ck.fail(
+                raise ConfigError(
+                    str(path),
                     "launch",
                     f"{pname} depends on {dep}, which this profile does not launch",
                     allowed=", ".join(sorted(processes)),
                 )
     domains, channel_domains = _domains(url, host_buses, hosts, channels, processes, launch)
-    sup = ck.mapping(data.get("supervisor") or {}, "supervisor")
-    ck.known_keys(sup, "supervisor",
-                  {"status_channel", "orders_channel", "timing_channel", "host",
-                   "deputy_orders_channel", "deputy_status_channel"})
-    sup_host = ck.string(sup, "supervisor", "host", default="laptop" if "laptop" in hosts else "",
-                         choices=tuple(sorted(hosts)) or None) if hosts else ""
+    sup = top.supervisor
+    sup_host = ""
+    if hosts:
+        sup_host = sup.host if sup.host is not None else "laptop" if "laptop" in hosts else ""
+        if sup.host is not None and sup.host not in hosts:
+            raise ConfigError(str(path), "supervisor.host",
+                              f"{sup.host!r} is not one of the allowed values",
+                              ", ".join(sorted(hosts)))
     # Relative paths in params (terrains, ...) resolve against hw_config/ when the profile builds
     # on the product configuration, else against the profile's own folder.
     if any(HW_CONFIG_DIR.resolve() in f.parents for f in seen):
         hw_dir = HW_CONFIG_DIR.resolve()
     return Profile(
-        name=name,
+        name=top.profile or path.stem,
         path=path,
         hw_config_dir=hw_dir,
-        mode=mode,
+        mode=top.mode,
         lcm_url=url,
         base_lcm_url=base_url,
         hosts=hosts,
         channels=channels,
         processes=processes,
-        launch=tuple(launch),
-        timing_report_hz=report_hz,
-        status_channel=ck.string(sup, "supervisor", "status_channel", default="SUPERVISOR_STATUS"),
-        orders_channel=ck.string(sup, "supervisor", "orders_channel", default="SUPERVISOR_ORDERS"),
-        timing_channel=ck.string(sup, "supervisor", "timing_channel", default="TIMING"),
-        deputy_orders_channel=ck.string(sup, "supervisor", "deputy_orders_channel",
-                                        default="DEPUTY_ORDERS"),
-        deputy_status_channel=ck.string(sup, "supervisor", "deputy_status_channel",
-                                        default="DEPUTY_STATUS"),
+        launch=launch,
+        timing_report_hz=top.timing_report_hz,
+        status_channel=sup.status_channel,
+        orders_channel=sup.orders_channel,
+        timing_channel=sup.timing_channel,
+        deputy_orders_channel=sup.deputy_orders_channel,
+        deputy_status_channel=sup.deputy_status_channel,
         domains=domains,
         channel_domains=channel_domains,
-        rtf=rtf,
+        rtf=top.rtf,
         supervisor_host=sup_host,
     )
+
 
 
 def _domains(
@@ -516,7 +496,7 @@ def _domains(
     hosts: dict[str, HostConfig],
     channels: dict[str, ChannelConfig],
     processes: dict[str, ProcessConfig],
-    launch: list[str],
+    launch: Sequence[str],
 ) -> tuple[dict[str, str], dict[str, str]]:
     """The LCM domains (name -> URL) and the domain of every channel, checked against the
     launched processes: a host-local channel is published from one host only, and only
@@ -574,33 +554,14 @@ def _domains(
             continue
         for proc, role in subs.get(ch.name, []):
             if proc.host != domain:
-                raise ConfigError(
+                raise proc.blame(ConfigError(
                     str(proc.source_file), proc.key("inputs", role),
                     f"{ch.name} stays on host {domain} (ttl 0), but {proc.name} runs on "
                     f"{proc.host} and would never receive it",
                     allowed="a channel that crosses hosts (NETWORK_ name or `scope: network` "
                     "in channels.yaml), or run the process on " + domain,
-                )
+                ))
     return domains, out
-
-
-def _blame_override(
-    exc: ConfigError, pname: str, overrides: list[tuple[dict[str, Any], Path]]
-) -> ConfigError:
-    """Point an error at the ``overrides`` entry that set the value, when one did."""
-    prefix = f"processes.{pname}."
-    if not exc.key.startswith(prefix):
-        return exc
-    rest = exc.key[len(prefix) :]
-    for override, ofile in reversed(overrides):
-        node: Any = override
-        for part in rest.split("."):
-            if not isinstance(node, dict) or part not in node:
-                break
-            node = node[part]
-        else:
-            return ConfigError(str(ofile), f"overrides.{pname}.{rest}", exc.problem, exc.allowed)
-    return exc
 
 
 def _is_ip(text: str) -> bool:
@@ -615,180 +576,122 @@ def _channel(cname: str, value: Any, file: Path,
              hosts: dict[str, HostConfig] | None = None) -> ChannelConfig:
     """One entry of ``channels``; a UDP link's HOST may name a host of hosts.yaml (its
     address: the NUC's and the target PC's, as on the robot)."""
-    ck = _Checker(file)
     key = f"channels.{cname}"
     if isinstance(value, str):
-        if not value.replace("_", "").isalnum():
-            raise ck.fail(
-                key,
-                f"{value!r} is not a valid LCM channel name",
-                allowed="letters, digits and underscores",
-            )
-        return ChannelConfig(cname, value)
-    d = ck.mapping(value, key)
-    ck.known_keys(d, key, {"udp", "name", "scope"})
-    if "udp" in d:
-        addr = ck.string(d, key, "udp")
-        host, _, port_s = addr.rpartition(":")
+        return ChannelConfig(cname, _lcm_name(value, str(file), key))
+    entry = _read(ChannelEntry, value, file, key)
+    if entry.udp is not None:
+        host, _, port_s = entry.udp.rpartition(":")
         if not host or not port_s.isdigit() or not 0 < int(port_s) < 65536:
-            raise ck.fail(
-                f"{key}.udp", f"{addr!r} is not HOST:PORT", allowed="e.g. 127.0.0.1:25000"
-            )
+            raise ConfigError(str(file), f"{key}.udp", f"{entry.udp!r} is not HOST:PORT",
+                              allowed="e.g. 127.0.0.1:25000")
         port = int(port_s) + INSTANCE_PORT_STEP * instance()
         if hosts and host in hosts:
             host = hosts[host].address
         elif hosts is not None and not _is_ip(host):
-            raise ck.fail(f"{key}.udp", f"{host!r} is neither a host of hosts.yaml nor an IPv4 "
-                          "address", allowed=", ".join(sorted(hosts or {})) + " or a.b.c.d")
+            raise ConfigError(str(file), f"{key}.udp", f"{host!r} is neither a host of "
+                              "hosts.yaml nor an IPv4 address",
+                              allowed=", ".join(sorted(hosts or {})) + " or a.b.c.d")
         return ChannelConfig(cname, f"udp:{host}:{port}", udp=(host, port))
-    name = ck.string(d, key, "name")
-    if not name.replace("_", "").isalnum():
-        raise ck.fail(f"{key}.name", f"{name!r} is not a valid LCM channel name",
-                      allowed="letters, digits and underscores")
-    scope = ck.string(d, key, "scope", default="")
-    if scope == "host":
-        scope = ""
-    return ChannelConfig(cname, name, scope=scope)
+    if entry.name is None:
+        raise ConfigError(str(file), f"{key}.name", "is required",
+                          "an LCM channel name (or udp: HOST:PORT for a UDP link)")
+    name = _lcm_name(entry.name, str(file), f"{key}.name")
+    return ChannelConfig(cname, name, scope="" if entry.scope == "host" else entry.scope)
 
 
 def _process(
     pname: str,
-    d: dict[str, Any],
+    d: ProcessEntry,
     file: Path,
     hosts: dict[str, HostConfig],
     channels: dict[str, ChannelConfig],
-    hw_dir: Path,
+    overridden: dict[str, Path],
 ) -> ProcessConfig:
-    ck = _Checker(file)
+    """The ProcessConfig of entry ``d`` of ``file``: its host, channels, rates' roles, gains
+    file and limits checked against the rest of the profile."""
     key = f"processes.{pname}"
-    ck.known_keys(d, key, PROCESS_KEYS)
-    host = ck.string(d, key, "host", choices=tuple(sorted(hosts)) or None)
-    module = ck.string(d, key, "module")
-    if importlib.util.find_spec(module.split(".")[0]) is None:
-        raise ck.fail(f"{key}.module", f"no importable Python package for {module!r}")
-    rate = ck.number(d, key, "rate_hz", default=None, lo=0.0, hi=100000.0, lo_open=True)
-    deadline = ck.number(d, key, "deadline_ms", default=None, lo=0.0, hi=60000.0, lo_open=True)
 
-    def ports(section: str) -> dict[str, ChannelConfig]:
-        table = ck.mapping(d.get(section) or {}, f"{key}.{section}")
-        out = {}
+    def fail(sub: str, problem: str, allowed: str | None = None) -> ConfigError:
+        return ConfigError(str(file), f"{key}.{sub}", problem, allowed)
+
+    if hosts and d.host not in hosts:
+        raise fail("host", f"{d.host!r} is not one of the allowed values", ", ".join(sorted(hosts)))
+    if not d.module or importlib.util.find_spec(d.module.split(".")[0]) is None:
+        raise fail("module", f"no importable Python package for {d.module!r}")
+
+    def ports(section: str, table: dict[str, str]) -> dict[str, ChannelConfig]:
+        out: dict[str, ChannelConfig] = {}
+        roles: dict[str, str] = {}
         for role, cname in table.items():
             if cname not in channels:
-                raise ck.fail(
-                    f"{key}.{section}.{role}",
-                    f"unknown channel {cname!r}",
-                    allowed=", ".join(sorted(channels)),
-                )
-            out[str(role)] = channels[cname]
+                raise fail(f"{section}.{role}", f"unknown channel {cname!r}",
+                           allowed=", ".join(sorted(channels)))
+            ch = channels[cname]
+            if ch.name in roles:  # two roles on one channel: one stream taken as two
+                raise fail(f"{section}.{role}", f"channel {ch.name} is already its "
+                           f"{section[:-1]} {roles[ch.name]!r}", allowed="one role per channel")
+            roles[ch.name] = role
+            out[role] = ch
         return out
 
-    inputs, outputs = ports("inputs"), ports("outputs")
-    for section, table in (("inputs", inputs), ("outputs", outputs)):
-        roles: dict[str, str] = {}
-        for role, ch in table.items():  # two roles on one channel: one stream taken as two
-            if ch.name in roles:
-                raise ck.fail(f"{key}.{section}.{role}",
-                              f"channel {ch.name} is already its {section[:-1]} "
-                              f"{roles[ch.name]!r}", allowed="one role per channel")
-            roles[ch.name] = role
-    deps = d.get("depends_on") or []
-    if not isinstance(deps, list) or not all(isinstance(x, str) for x in deps):
-        raise ck.fail(f"{key}.depends_on", f"must be a list of process names, got {deps!r}")
-    ready = ck.mapping(d.get("ready") or {}, f"{key}.ready")
-    ck.known_keys(ready, f"{key}.ready", {"timeout_s"})
-    ready_timeout = ck.number(
-        ready, f"{key}.ready", "timeout_s", default=15.0, lo=0.0, lo_open=True
-    )
-    max_rate = ck.number(d, key, "max_rate_hz", default=None, lo=0.0, hi=100000.0, lo_open=True)
-    out_rates = ck.mapping(d.get("output_rate_hz") or {}, f"{key}.output_rate_hz")
-    for role in out_rates:
+    inputs, outputs = ports("inputs", d.inputs), ports("outputs", d.outputs)
+    for role in d.output_rate_hz:
         if role not in outputs:
-            raise ck.fail(f"{key}.output_rate_hz.{role}", "not an output of this process",
-                          allowed=", ".join(sorted(outputs)))
-        ck.number(out_rates, f"{key}.output_rate_hz", role, lo=0.0, hi=100000.0, lo_open=True)
-    r = ck.mapping(d.get("restart") or {}, f"{key}.restart")
-    ck.known_keys(r, f"{key}.restart", RESTART_KEYS)
-    restart = RestartPolicy(
-        policy=ck.string(
-            r, f"{key}.restart", "policy", default="on-failure", choices=RESTART_POLICIES
-        ),
-        max_restarts=ck.number(
-            r, f"{key}.restart", "max_restarts", default=5, lo=0, hi=1000, integer=True
-        ),
-        window_s=ck.number(r, f"{key}.restart", "window_s", default=60.0, lo=0.0, lo_open=True),
-        backoff_initial_s=ck.number(r, f"{key}.restart", "backoff_initial_s", default=0.5, lo=0.0),
-        backoff_max_s=ck.number(r, f"{key}.restart", "backoff_max_s", default=8.0, lo=0.0),
-        standby=ck.boolean(r, f"{key}.restart", "standby", False),
-    )
-    aff = d.get("cpu_affinity")
-    if aff is not None and (
-        not isinstance(aff, list)
-        or not aff
-        or not all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in aff)
-    ):
-        raise ck.fail(
-            f"{key}.cpu_affinity",
-            f"must be a list of CPU numbers, got {aff!r}",
-            allowed=f"CPU numbers 0..{(os.cpu_count() or 1) - 1}",
-        )
-    nice = ck.number(d, key, "nice", default=None, lo=-20, hi=19, integer=True)
-    rt_priority = ck.number(d, key, "rt_priority", default=None, lo=1, hi=99, integer=True)
-    gains = d.get("gains")
+            raise fail(f"output_rate_hz.{role}", "not an output of this process",
+                       allowed=", ".join(sorted(outputs)))
     gains_file = None
-    if gains is not None:
-        gains_file = (file.parent / ck.string(d, key, "gains")).resolve()
-        if not gains_file.exists():
-            raise ck.fail(
-                f"{key}.gains",
-                f"gains file {gains!r} does not exist",
-                allowed="a path relative to hw_config/, e.g. gains/osc.yaml",
-            )
-    params = ck.mapping(d.get("params") or {}, f"{key}.params")
+    if d.gains is not None:
+        gains_file = (file.parent / d.gains).resolve()
+        if not d.gains or not gains_file.is_file():
+            raise fail("gains", f"gains file {d.gains!r} does not exist",
+                       allowed="a path relative to hw_config/, e.g. gains/osc.yaml")
     limits: dict[str, dict[str, tuple[float, float]]] = {}
-    for role, fields in ck.mapping(d.get("limits") or {}, f"{key}.limits").items():
+    for role, bounds in d.limits.items():
         if role not in inputs:
-            raise ck.fail(f"{key}.limits.{role}", "not an input of this process",
-                          allowed=", ".join(sorted(inputs)))
-        limits[str(role)] = {}
-        for fname, rng in ck.mapping(fields or {}, f"{key}.limits.{role}").items():
+            raise fail(f"limits.{role}", "not an input of this process",
+                       allowed=", ".join(sorted(inputs)))
+        limits[role] = {}
+        for fname, rng in bounds.items():
             if fname == "utime_step_s":  # the stream's clock (runtime.validate): one number
                 if isinstance(rng, bool) or not isinstance(rng, int | float) or not rng > 0:
-                    raise ck.fail(f"{key}.limits.{role}.utime_step_s",
-                                  f"must be seconds > 0, got {rng!r}")
-                limits[str(role)][fname] = (0.0, float(rng))
+                    raise fail(f"limits.{role}.utime_step_s", f"must be seconds > 0, got {rng!r}")
+                limits[role][fname] = (0.0, float(rng))
                 continue
             ok = (isinstance(rng, list) and len(rng) == 2
                   and all(isinstance(x, int | float) and not isinstance(x, bool) for x in rng)
                   and all(x == x for x in rng) and rng[0] <= rng[1])
             if not ok:
-                raise ck.fail(f"{key}.limits.{role}.{fname}", f"must be [lo, hi], got {rng!r}",
-                              allowed="two numbers, lo <= hi")
-            limits[str(role)][str(fname)] = (float(rng[0]), float(rng[1]))
+                raise fail(f"limits.{role}.{fname}", f"must be [lo, hi], got {rng!r}",
+                           allowed="two numbers, lo <= hi")
+            limits[role][str(fname)] = (float(rng[0]), float(rng[1]))
     return ProcessConfig(
         name=pname,
-        host=host,
-        module=module,
+        host=d.host,
+        module=d.module,
         source_file=file,
-        description=str(d.get("description", "")),
-        rate_hz=rate,
-        deadline_ms=deadline,
+        description=d.description,
+        rate_hz=d.rate_hz,
+        deadline_ms=d.deadline_ms,
         inputs=inputs,
         outputs=outputs,
-        depends_on=tuple(deps),
-        ready_timeout_s=ready_timeout,
-        restart=restart,
-        required=ck.boolean(d, key, "required", True),
-        cpu_affinity=tuple(aff) if aff else (hosts[host].cpus if host in hosts else None),
-        nice=nice,
-        rt_priority=rt_priority,
-        max_rate_hz=max_rate,
-        output_rate_hz={str(k): float(v) for k, v in out_rates.items()},
-        gc=ck.string(d, key, "gc", default="freeze", choices=("on", "freeze")),
-        params=params,
+        depends_on=d.depends_on,
+        ready_timeout_s=d.ready.timeout_s,
+        restart=d.restart,
+        required=d.required,
+        cpu_affinity=d.cpu_affinity or (hosts[d.host].cpus if d.host in hosts else None),
+        nice=d.nice,
+        rt_priority=d.rt_priority,
+        max_rate_hz=d.max_rate_hz,
+        output_rate_hz=d.output_rate_hz,
+        gc=d.gc,
+        params=d.params,
         limits=limits,
         gains_file=gains_file,
-        harness_delay_ms=ck.number(d, key, "harness_delay_ms", default=0.0, lo=0.0, hi=1000.0),
+        harness_delay_ms=d.harness_delay_ms,
+        overridden=overridden,
     )
+
 
 
 def check_depends(profile: Profile) -> list[str]:
@@ -801,21 +704,21 @@ def check_depends(profile: Profile) -> list[str]:
             return
         if state.get(name) == 1:
             proc = profile.processes[name]
-            raise ConfigError(
+            raise proc.blame(ConfigError(
                 str(proc.source_file),
                 proc.key("depends_on"),
                 "dependency cycle: " + " -> ".join([*chain, name]),
-            )
+            ))
         state[name] = 1
         proc = profile.processes[name]
         for dep in proc.depends_on:
             if dep not in profile.processes:
-                raise ConfigError(
+                raise proc.blame(ConfigError(
                     str(proc.source_file),
                     proc.key("depends_on"),
                     f"no process named {dep!r}",
                     allowed=", ".join(sorted(profile.processes)),
-                )
+                ))
             visit(dep, [*chain, name])
         state[name] = 2
         order.append(name)

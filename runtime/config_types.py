@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
+from runtime.errors import ConfigError
+from runtime.params import spec
+
+W = TypeVar("W")
 Mode = Literal["realtime", "lockstep"]
 RestartKind = Literal["always", "on-failure", "never"]
 
@@ -41,13 +46,15 @@ class ChannelConfig:
 
 @dataclass(frozen=True)
 class RestartPolicy:
-    """When and how fast the supervisor restarts a process, and when it gives up."""
+    """When and how fast the supervisor restarts a process, and when it gives up: a process's
+    ``restart:`` in processes.yaml, read as it is (``runtime.params.read``)."""
 
     policy: RestartKind = "on-failure"
-    max_restarts: int = 5  # within window_s; one more and the process is in crash_loop
-    window_s: float = 60.0
-    backoff_initial_s: float = 0.5
-    backoff_max_s: float = 8.0
+    #: within window_s; one more and the process is in crash_loop
+    max_restarts: int = spec(5, lo=0, hi=1000)
+    window_s: float = spec(60.0, lo=0.0, lo_open=True, unit="s")
+    backoff_initial_s: float = spec(0.5, lo=0.0, unit="s")
+    backoff_max_s: float = spec(8.0, lo=0.0, unit="s")
     #: keep a spare copy of the process set up and waiting (``cassie run --standby``): a
     #: crash is answered by waking it, ready in milliseconds instead of a cold start
     standby: bool = False
@@ -85,10 +92,46 @@ class ProcessConfig:
     limits: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
     gains_file: Path | None = None
     harness_delay_ms: float = 0.0  # modelled compute latency in the deterministic harness
+    #: the values a profile's ``overrides:`` wrote: their key under the process (``rate_hz``,
+    #: ``params.push.force_n``) -> the profile file that wrote it (the last one, when several
+    #: did); an error about one of them names that file (``blame``)
+    overridden: dict[str, Path] = field(default_factory=dict)
 
     def key(self, *parts: str) -> str:
         """Dotted config key for error messages, e.g. ``processes.osc.params.kp``."""
         return ".".join(("processes", self.name, *parts))
+
+    def blame(self, exc: ConfigError) -> ConfigError:
+        """``exc`` naming the profile file and the ``overrides:`` key that wrote the value it
+        is about, when one did (``blame_override``)."""
+        return blame_override(exc, self.name, self.overridden)
+
+
+def blame_override(exc: ConfigError, process: str, overridden: dict[str, Path]) -> ConfigError:
+    """``exc`` naming where its value was written: ``overrides.PROCESS.KEY`` of the profile
+    file that overrode it (``overridden``: ``ProcessConfig.overridden``), when one did, else
+    ``exc`` as it is; so an error points at the line to fix, not at the catalog entry the
+    override replaced."""
+    prefix = f"processes.{process}."
+    if not exc.key.startswith(prefix):
+        return exc
+    rest = exc.key[len(prefix):]
+    file = writer(rest, overridden)
+    if file is None:
+        return exc
+    return ConfigError(str(file), f"overrides.{process}.{rest}", exc.problem, exc.allowed)
+
+
+def writer(key: str, written: Mapping[str, W]) -> W | None:
+    """Who wrote the value at the dotted ``key``, of ``written`` (dotted key -> its writer, in
+    the order written): the writer of ``key`` or of the nearest value it is part of (a list's
+    item, a mapping written whole); else the last writer of a key inside it (a mapping put
+    together with that value); else None. How an error is traced back to its override."""
+    covering = [at for at in written if key == at or key.startswith((at + ".", at + "["))]
+    if covering:
+        return written[max(covering, key=len)]  # the most specific
+    inside = [by for at, by in written.items() if at.startswith(key + ".")]
+    return inside[-1] if inside else None
 
 
 @dataclass(frozen=True)

@@ -3,12 +3,14 @@
 One mechanism for every process: the dataclass's fields are the allowed keys (an unknown key
 is always an error), their annotations the types, and ``spec(lo=, hi=, choices=)`` in a
 field's metadata the range. Every error is a ``ConfigError`` naming the file, the dotted key
-and what is allowed, as the profile loader's are. Written here rather than with pydantic or
-msgspec: those would need a translation layer to give errors in the project's one shape
-(file, key, allowed), and the types in use are few (numbers, booleans, strings, fixed tuples,
-nested dataclasses). A check across fields (min <= max, an odd kernel) is the dataclass's
-``__post_init__`` raising ``ConfigError("<ClassName>", key, problem, allowed)``: ``read`` puts
-the file and the dotted key in its place, and ``check`` runs both on an object built in code.
+and what is allowed; the launch profile's files are read with it too (``runtime.config``).
+Written here rather than with pydantic or msgspec: those would need a translation layer to
+give errors in the project's one shape (file, key, allowed), and the types in use are few
+(numbers, booleans, strings, fixed tuples, mappings, nested dataclasses, and ``Any`` for a
+free-form value that its reader checks). A check across fields (min <= max, an odd kernel)
+is the dataclass's ``__post_init__`` raising ``ConfigError("<ClassName>", key, problem,
+allowed)``: ``read`` puts the file and the dotted key in its place, and ``check`` runs both on
+an object built in code.
 
     @dataclass(frozen=True)
     class SwingGains:
@@ -152,6 +154,8 @@ def _allowed(tp: Any, f: dataclasses.Field[Any] | None) -> str | None:
 
 def _value(tp: Any, v: Any, f: dataclasses.Field[Any] | None, file: str, key: str) -> Any:
     """``v`` checked against the annotation ``tp`` (and the field's range)."""
+    if tp is Any:  # free-form: checked by whoever reads it (a process's params, a section)
+        return v
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):  # X | None
         if v is None and type(None) in args:

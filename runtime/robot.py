@@ -29,7 +29,13 @@ SPRING_JOINTS = ("shin", "heel-spring")
 #: capsule (menagerie cassie.xml), (front, rear): at the standing pose world x is +0.06, -0.10
 FOOT_BLADE_ENDS = ((-0.052821, 0.092622, 0.0), (0.069746, -0.010224, 0.0))
 FOOT_BLADE_RADIUS = 0.02
-
+#: the RealSense D455 depth camera's mount on the pelvis, the one place of it (the sim's camera
+#: renders from it, perception places its frames with it): its optical centre in the pelvis
+#: frame (m), and its optical axis pitched this far below the pelvis x axis (deg). The values
+#: the sim's camera was built with (commit 13b2f4a), not measured on a robot: a real Cassie's
+#: mount goes here.
+CAMERA_MOUNT_POS_M = (0.09, 0.0, 0.02)
+CAMERA_PITCH_DOWN_DEG = 50.0
 
 
 def mount_rotation(pitch_down_deg: float) -> Any:

@@ -25,7 +25,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from runtime.robot import mount_rotation
+from runtime.robot import CAMERA_MOUNT_POS_M, CAMERA_PITCH_DOWN_DEG, mount_rotation
 
 PELVIS_BODY = "cassie-pelvis"
 log = logging.getLogger(__name__)
@@ -45,8 +45,8 @@ class CameraConfig:
     depth_scale: float = 0.001  # metres per z16 unit
     min_range_m: float = 0.4
     max_range_m: float = 6.0
-    mount_pos: tuple[float, float, float] = (0.09, 0.0, 0.02)  # pelvis frame, metres
-    pitch_down_deg: float = 50.0  # optical axis below the pelvis x axis
+    mount_pos: tuple[float, float, float] = CAMERA_MOUNT_POS_M  # pelvis frame (runtime.robot)
+    pitch_down_deg: float = CAMERA_PITCH_DOWN_DEG  # optical axis below the pelvis x axis
     rate_hz: float = 30.0
     noise_std_at_1m: float = 0.0  # depth noise std (m) at 1 m; grows with depth squared
     dropout: float = 0.0  # fraction of pixels randomly set to 0 (no data)

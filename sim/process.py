@@ -119,8 +119,6 @@ class CameraGains:
     depth_scale: float = spec(_CAM.depth_scale, lo=1e-6, hi=1.0, unit="m")
     min_range_m: float = spec(_CAM.min_range_m, lo=0.0, unit="m")
     max_range_m: float = spec(_CAM.max_range_m, lo=1e-3, hi=65.0, unit="m")
-    mount_pos_m: tuple[float, float, float] = spec(_CAM.mount_pos, unit="m")  # pelvis frame
-    pitch_down_deg: float = spec(_CAM.pitch_down_deg, lo=-90.0, hi=90.0, unit="deg")
     rate_hz: float = spec(_CAM.rate_hz, lo=1e-3, hi=1000.0, unit="Hz")
     noise_std_at_1m: float = spec(_CAM.noise_std_at_1m, lo=0.0, hi=1.0, unit="m")
     dropout: float = spec(_CAM.dropout, lo=0.0, hi=1.0)
@@ -138,9 +136,11 @@ class CameraGains:
                               f"[1, {min(self.width, self.height)}]")
 
     def config(self) -> CameraConfig:
-        """The camera's own settings."""
-        kw = {f.name: getattr(self, f.name) for f in fields(CameraConfig) if f.name != "mount_pos"}
-        return CameraConfig(**kw, mount_pos=self.mount_pos_m)
+        """The camera's own settings; its mount on the pelvis is the robot's
+        (``runtime.robot``, CameraConfig's default), not a gain."""
+        mount = ("mount_pos", "pitch_down_deg")
+        return CameraConfig(**{f.name: getattr(self, f.name) for f in fields(CameraConfig)
+                               if f.name not in mount})
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,8 @@ The values are YAML (``[0, 1]``, ``true``, ``1e-3``). They become a profile file
 the given one and patches it through the one mechanism a profile has for that (``overrides``,
 ``runtime.config``), with a copy of each gains file changed; both are written into the
 launch's log folder, so the run keeps what it ran with, and everything is validated as any
-profile is, with errors that name the key.
+profile is (and the changed processes' params and gains as their build reads them), with
+errors that name the command line and the key typed there when the bad value was typed there.
 """
 
 from __future__ import annotations
@@ -20,7 +21,9 @@ from typing import Any
 
 import yaml
 
+from runtime.builder import process_module, read_config
 from runtime.config import load_profile, load_yaml
+from runtime.config_types import writer
 from runtime.errors import ConfigError
 
 SEP = ":="
@@ -69,7 +72,8 @@ def write_overlay(profile_path: Path, items: list[str], folder: Path) -> Path:
             overlay[key] = top[key]
     procs: dict[str, dict[str, Any]] = {}
     gains_docs: dict[str, tuple[Path, dict[str, Any]]] = {}
-    for path, value in parse(items):
+    parsed = parse(items)
+    for path, value in parsed:
         item = f"{'.'.join(path)}{SEP}{value}"
         head = path[0]
         if head not in base.processes:
@@ -113,16 +117,45 @@ def write_overlay(profile_path: Path, items: list[str], folder: Path) -> Path:
             raise ConfigError("the command line", ".".join(path), "too deep for a process key",
                               f"{head}.params.NAME or {head}.gains.A.B")
     folder.mkdir(parents=True, exist_ok=True)
+    copies: dict[str, str] = {}  # a gains file written here -> its process
     for head, (src, doc) in gains_docs.items():
         out = folder / "gains" / f"{head}.{src.name}"  # (two processes may share a file name)
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(f"# {src} with the command line's overrides\n"
                        + yaml.safe_dump(doc, sort_keys=False))
         procs.setdefault(head, {})["gains"] = str(out)
+        copies[str(out.resolve())] = head
     if procs:
         overlay["overrides"] = procs
     out = folder / f"{base.name}.overrides.yaml"
     out.write_text("# written by `cassie launch` from the command line's key:=value\n"
                    + yaml.safe_dump(overlay, sort_keys=False))
-    load_profile(out)  # every value checked now, before anything starts
+    typed = {".".join(path): ".".join(path) for path, _ in parsed}
+    try:  # every value checked now, before anything starts
+        profile = load_profile(out)
+        for head in procs:  # the changed processes' params and gains, as their build reads them
+            proc = profile.processes[head]
+            module = process_module(proc)
+            if hasattr(module, "Params"):
+                read_config(proc, module)
+    except ConfigError as exc:
+        raise _blame_the_command_line(exc, out.resolve(), copies, typed) from None
     return out
+
+
+def _blame_the_command_line(exc: ConfigError, overlay: Path, copies: dict[str, str],
+                            typed: dict[str, str]) -> ConfigError:
+    """``exc`` naming the command line and the key typed there, when the value it is about
+    was typed there (``typed``: the items' dotted keys), not the files written from them
+    (``overlay`` and the gains ``copies``); else ``exc`` as it is."""
+    if exc.file == str(overlay):
+        key = exc.key.removeprefix("overrides.")
+    elif exc.file in copies:
+        inner = exc.key.split(".", 2)  # an override of a gain a variant sets went there too
+        in_file = inner[2] if inner[0] == "variants" and len(inner) == 3 else exc.key
+        key = f"{copies[exc.file]}.gains.{in_file}"
+    else:
+        return exc
+    if writer(key, typed) is None:
+        return exc
+    return ConfigError("the command line", key, exc.problem, exc.allowed)

@@ -29,6 +29,7 @@ from runtime.codecs import MAP_NO_DATA, MAP_OK, MAP_STALE, elevation_map_to_msg
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Node
 from runtime.params import spec
+from runtime.robot import CAMERA_MOUNT_POS_M, CAMERA_PITCH_DOWN_DEG
 
 LAYERS = ("elevation", "variance", "lowest")
 class PerceptionNode(Node):
@@ -136,24 +137,22 @@ class Params:
     """Perception's ``params:`` (hw_config/processes.yaml, and the profiles' overrides)."""
 
     variant: str = "simulation"  # the column of Table VIII: a variant of the gains file
-    #: where the camera is: ``estimated`` (the estimated pelvis pose and the mount below) or
-    #: ``frame`` (the pose in the frame: the simulator's true camera pose)
+    #: where the camera is: ``estimated`` (the estimated pelvis pose times the robot's camera
+    #: mount, runtime.robot) or ``frame`` (the pose in the frame: the simulator's true pose)
     camera_pose: str = spec("estimated", choices=("estimated", "frame"))
-    #: the D455's position in the pelvis frame [x, y, z] (as in gains/sim.yaml)
-    camera_mount_pos_m: tuple[float, float, float] = spec((0.09, 0.0, 0.02), unit="m")
-    camera_pitch_down_deg: float = spec(50.0, lo=-90.0, hi=90.0, unit="deg")
     crop_legs: bool = True  # drop the points on the robot's own legs (boxes around the links)
     drift_correction: bool = True  # the stance foot corrects the map's height (Section VII-B)
 
 
 def make_node(proc: ProcessConfig, profile: Profile, params: Params,
               gains: ElevationMapParams) -> Node:
-    """Perception from hw_config: map parameters (gains file) and camera mount (params)."""
+    """Perception from hw_config: map parameters (gains file), params, and the camera's
+    mount on the pelvis from the robot description (runtime.robot, as the sim's camera)."""
     return PerceptionNode(
         gains,
         params.camera_pose,
-        np.asarray(params.camera_mount_pos_m, dtype=float),
-        params.camera_pitch_down_deg,
+        np.asarray(CAMERA_MOUNT_POS_M, dtype=float),
+        CAMERA_PITCH_DOWN_DEG,
         params.crop_legs,
         params.drift_correction,
     )

@@ -2,9 +2,9 @@
 corrects drift and the ground under the feet at the start (Section VII-A/B), from the robot's
 kinematics and its contacts; no LCM in it.
 
-The camera is mounted on the pelvis (the mount position and pitch are params): its pose is the
-estimated pelvis pose times the mount. The robot's own legs are cut out of the point cloud
-with boxes around the leg links. The stance foot's height corrects the map's drift
+The camera is mounted on the pelvis (the mount position and pitch: ``runtime.robot``): its
+pose is the estimated pelvis pose times the mount. The robot's own legs are cut out of the
+point cloud with boxes around the leg links. The stance foot's height corrects the map's drift
 (Section VII-B): the ALIP filter's stance when that foot is down, else a foot that is. The
 first time both feet are down, the unknown cells around them take the feet's height (the
 camera never sees the ground the robot starts on).

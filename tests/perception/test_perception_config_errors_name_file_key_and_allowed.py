@@ -1,6 +1,6 @@
-"""Perception built from a profile: an unknown key or a bad value, in its params (the camera
-mount) or in its gains file (the elevation map, Table VIII), stops the build with a
-ConfigError naming the file, the dotted key and what is allowed."""
+"""Perception built from a profile: an unknown key or a bad value, in its params (where the
+camera pose comes from, the crops) or in its gains file (the elevation map, Table VIII),
+stops the build with a ConfigError naming the file, the dotted key and what is allowed."""
 
 from __future__ import annotations
 
@@ -21,26 +21,22 @@ GAINS = HW_CONFIG_DIR / "gains" / "elevation_map.yaml"
 
 def test_the_profile_as_written_reads_its_params_and_gains(tmp_path: Path) -> None:
     proc, _ = one_process(tmp_path, "perception", {"variant": "hardware", "camera_pose": "frame",
-                                                   "camera_mount_pos_m": [0.1, 0, 0.03]},
-                          mode="lockstep")
+                                                   "crop_legs": False}, mode="lockstep")
     params, gains = read_config(proc, process_module(proc))
-    assert params == Params(variant="hardware", camera_pose="frame",
-                            camera_mount_pos_m=(0.1, 0.0, 0.03))
+    assert params == Params(variant="hardware", camera_pose="frame", crop_legs=False)
     assert gains == load(ElevationMapParams, GAINS, "hardware")
     assert (gains.length_m, gains.resolution_m) == (3.0, 0.03)  # Table VIII, hardware
 
 
-ALL_PARAMS = ("camera_mount_pos_m, camera_pitch_down_deg, camera_pose, crop_legs, "
-              "drift_correction, variant")
+ALL_PARAMS = "camera_pose, crop_legs, drift_correction, variant"
 
 
 @pytest.mark.parametrize(("params", "key", "problem", "allowed"), [
     ({"camera_yaw_deg": 10.0}, "camera_yaw_deg", "unknown key", ALL_PARAMS),
     ({"camera_pose": "lidar"}, "camera_pose", "'lidar' is not one of the allowed values",
      "estimated, frame"),
-    ({"camera_pitch_down_deg": 120}, "camera_pitch_down_deg", "out of range: 120",
-     "[-90.0, 90.0] deg"),
-    ({"camera_mount_pos_m": [0.09, 0.0]}, "camera_mount_pos_m", "must be a list of 3", None),
+    # the camera's mount is the robot's (runtime.robot), not a param
+    ({"camera_pitch_down_deg": 50.0}, "camera_pitch_down_deg", "unknown key", ALL_PARAMS),
     ({"crop_legs": 1}, "crop_legs", "must be true or false", "true, false"),
 ])
 def test_a_bad_param_names_the_profile_the_key_and_what_is_allowed(

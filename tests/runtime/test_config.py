@@ -37,9 +37,11 @@ def _profile(tmp_path: Path, body: str) -> Path:
         ),
         (
             "overrides: {ticker: {cpu_affinity: [a]}}",
-            "overrides.ticker.cpu_affinity",
-            "list of CPU numbers",
+            "overrides.ticker.cpu_affinity[0]",
+            "must be an integer, got 'a' (allowed: [0, inf])",
         ),
+        ("overrides: {ticker: {cpu_affinity: []}}", "overrides.ticker.cpu_affinity",
+         "list of CPU numbers"),
         ("overrides: {ticker: {nice: 99}}", "overrides.ticker.nice", "allowed: [-20, 19]"),
         ("overrides: {ticker: {colour: red}}", "overrides.ticker.colour", "unknown key"),
         ("mode: turbo", "mode", "allowed: realtime, lockstep"),

@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from processes.s3 import S3Params, S3Pipeline
-from processes.s3 import synthetic as syn
 from processes.s3.metrics import coverage_mask, frame_iou
 from processes.s3.planes import fit_planes
 from runtime.errors import ConfigError
 from runtime.params import load
+from tools.testbed import s3_scenes as syn
 
 RES = 0.025
 SHAPE = (100, 100)

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from processes.s3 import S3Params, S3Pipeline
-from processes.s3 import synthetic as syn
 from processes.s3.segmentation import (
     Segmenter,
     curvature_criterion,
@@ -14,6 +13,7 @@ from processes.s3.segmentation import (
     inpaint,
     shift_mask,
 )
+from tools.testbed import s3_scenes as syn
 
 RES = 0.025
 SHAPE = (100, 100)

@@ -11,9 +11,9 @@ import pytest
 
 from processes.perception import ElevationMap, ElevationMapParams
 from processes.s3 import S3Pipeline, S3Result
-from processes.s3 import synthetic as syn
 from processes.s3.metrics import frame_iou
 from runtime.params import load
+from tools.testbed import s3_scenes as syn
 
 RES = 0.025
 REPO = Path(__file__).resolve().parents[2]

@@ -50,10 +50,16 @@ def test_a_bad_param_names_the_profile_key_and_allowed(tmp_path: Path, params, m
     assert str(err).startswith(f"{tmp_path / 'one.yaml'}: processes.sim.{message}")
 
 
+CAMERA_KEYS = ("allowed: cx, cy, decimation, depth_scale, dropout, enabled, fx, fy, height, "
+               "max_range_m, min_range_m, noise_std_at_1m, rate_hz, render, see_robot, seed, "
+               "width")
+
+
 @pytest.mark.parametrize(("change", "message"), [
-    (lambda g: g["camera"].__setitem__("fov", 90), "camera.fov: unknown key (allowed: cx, cy, "
-     "decimation, depth_scale, dropout, enabled, fx, fy, height, max_range_m, min_range_m, "
-     "mount_pos_m, noise_std_at_1m, pitch_down_deg, rate_hz, render, see_robot, seed, width)"),
+    (lambda g: g["camera"].__setitem__("fov", 90), f"camera.fov: unknown key ({CAMERA_KEYS})"),
+    # the camera's mount is the robot's (runtime.robot), not a gain
+    (lambda g: g["camera"].__setitem__("pitch_down_deg", 50.0),
+     f"camera.pitch_down_deg: unknown key ({CAMERA_KEYS})"),
     (lambda g: g["holder"].__setitem__("timeconst_s", 2.0),
      "holder.timeconst_s: out of range: 2.0 (allowed: [0.001, 1.0] s)"),
     (lambda g: g["camera"].__setitem__("min_range_m", 7.0),

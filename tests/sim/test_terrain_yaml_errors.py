@@ -76,7 +76,7 @@ def test_missing_terrain_file_is_a_config_error(tmp_path: Path) -> None:
     ("holder: {release_on: later}\n", "holder.release_on"),
     ("holder: {timeconst_s: -1}\n", "holder.timeconst_s"),
     ("camera: {decimation: 0}\n", "camera.decimation"),
-    ("camera: {mount_pos_m: [0, 0]}\n", "camera.mount_pos_m"),
+    ("camera: {mount_pos_m: [0.09, 0, 0.02]}\n", "camera.mount_pos_m"),  # (the robot's)
     ("camera: {min_range_m: 7.0}\n", "camera.min_range_m"),
     ("camera: {fov: 90}\n", "camera.fov"),
     ("lockstep: {timeout_s: 0}\n", "lockstep.timeout_s"),

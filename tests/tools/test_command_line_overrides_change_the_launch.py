@@ -69,3 +69,20 @@ def test_a_gain_a_variant_sets_is_overridden_in_the_variant_that_runs(tmp_path: 
     gains_cls = importlib.import_module(mpfc.module).Gains
     assert load(gains_cls, mpfc.gains_file, variant).step_width_m == 0.15  # (as written)
     assert load(gains_cls, profile.processes["mpfc"].gains_file, variant).step_width_m == 0.17
+
+
+@pytest.mark.parametrize(("item", "key", "allowed"), [
+    ("osc.params.start:=run", "osc.params.start", "walk, stand"),
+    ("osc.gains.walking.toe.kp:=-1", "osc.gains.walking.toe.kp", "[0.0, inf]"),
+    ("mpfc.gains.step_width_m:=-1", "mpfc.gains.step_width_m", "[0.0, inf] m"),  # (a variant's)
+    ("osc.nice:=99", "osc.nice", "[-20, 19]"),
+    ("mode:=sideways", "mode", "realtime, lockstep"),
+])
+def test_a_bad_value_typed_on_the_command_line_is_blamed_on_it(
+        item: str, key: str, allowed: str, tmp_path: Path) -> None:
+    """Not on hw_config/processes.yaml, nor on the files written from the command line."""
+    with pytest.raises(ConfigError) as err:
+        write_overlay(HW_CONFIG_DIR / "sim.yaml", [item], tmp_path)
+    assert (err.value.file, err.value.key, err.value.allowed) == ("the command line", key,
+                                                                  allowed)
+    assert str(err.value).startswith(f"the command line: {key}: ")

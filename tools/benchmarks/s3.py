@@ -21,9 +21,9 @@ import numpy as np
 
 from processes.perception import ElevationMap, ElevationMapParams
 from processes.s3 import STAGES, S3Params, S3Pipeline
-from processes.s3 import synthetic as syn
 from processes.s3.metrics import coverage_mask, frame_iou
 from tools.benchmarks.common import print_table, progress, summarize, write_json
+from tools.testbed import s3_scenes as syn
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_CONFIG = REPO / "hw_config" / "gains" / "s3.yaml"
