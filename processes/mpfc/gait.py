@@ -3,8 +3,9 @@
 The clock times the gait from touchdowns (the paper's Fig. 4): a stance phase starts at each
 touchdown with T_ss + T_ds remaining; the solution's stance time is taken only after T_ds
 (double stance), and the swing foot's planned touchdown ends the phase. ``within_height``
-and ``ReachableFootholds`` leave out footholds no leg reaches (ours, see processes/mpfc/
-process.py's docstring); ``MapHeight`` is the elevation map's height lookup of Section IX-A-3.
+and ``ReachableFootholds`` leave out footholds no leg reaches, and ``Halt`` stops the gait
+where no foothold ahead is within a step (both ours, see processes/mpfc/process.py's
+docstring); ``MapHeight`` is the elevation map's height lookup of Section IX-A-3.
 """
 
 from __future__ import annotations
@@ -20,18 +21,30 @@ LEFT, RIGHT = 0, 1
 
 
 class GaitClock:
-    """Which foot stands, since when, and when the next touchdown is (Fig. 4)."""
+    """Which foot stands, since when, and when the next touchdown is (Fig. 4).
 
-    def __init__(self, step_period_s: float) -> None:
+    Started from standing, the first double stance lasts ``start_ds_s`` instead of T_ds
+    (ours): the OSC moves the centre of pressure from the right foot to the left over it, as
+    in every double stance (2), and the CoM, centred between feet 27 cm apart, gets over the
+    left foot and moving towards it before the right foot lifts. With T_ds (0.1 s) the CoM
+    was still 13 cm outside the stance foot at rest when the swing began: it fell outward and
+    the first steps carried the robot 0.2 m sideways (measured), off a 23 cm beam."""
+
+    def __init__(self, step_period_s: float, t_ds_s: float = 0.0,
+                 start_ds_s: float = 0.0) -> None:
         self.step_period_s = step_period_s  # T_ss + T_ds
+        self.start_extra_s = max(start_ds_s - t_ds_s, 0.0)
         self.stance: int | None = None
         self.touchdown_s = 0.0
         self.next_touchdown_s = 0.0
+        self.extra_ds_s = 0.0  # this stance's double stance beyond T_ds (the start's)
         self._air_foot: int | None = None  # started mid-step: the foot that was in the air
 
-    def advance(self, t: float, in_contact: Sequence[bool]) -> bool:
+    def advance(self, t: float, in_contact: Sequence[bool], at_rest: bool = True) -> bool:
         """Move the clock to ``t``; a new stance at the planned touchdown. False while it
-        waits to start (a foot in the air: see ``first_stance``). True when it (re)started."""
+        waits to start (a foot in the air: see ``first_stance``). True when it (re)started.
+        ``at_rest``: the robot stands still (a start from standing, not a restart mid-walk
+        in double stance: only then the start's longer double stance)."""
         if self.stance is None:
             stance = self.first_stance(in_contact)
             if stance is None:
@@ -40,10 +53,13 @@ class GaitClock:
             # double stance, where the OSC hands over); restarted mid-walk: the foot that did
             self.stance = stance
             self.touchdown_s = t
-            self.next_touchdown_s = t + self.step_period_s
+            if self._air_foot is None and at_rest:  # from standing: the start's weight shift
+                self.extra_ds_s = self.start_extra_s
+            self.next_touchdown_s = t + self.step_period_s + self.extra_ds_s
             return True
         if t >= self.next_touchdown_s:  # touchdown of the swing foot: the stances swap
             self.stance = 1 - self.stance
+            self.extra_ds_s = 0.0
             self.touchdown_s = self.next_touchdown_s
             self.next_touchdown_s = self.touchdown_s + self.step_period_s
         return False
@@ -67,34 +83,49 @@ class GaitClock:
         return self._air_foot if all(down) else None
 
     def since_touchdown(self, t: float) -> float:
-        return t - self.touchdown_s
+        """Time since the touchdown, less the start's longer double stance while in it."""
+        return max(t - self.touchdown_s - self.extra_ds_s, 0.0)
 
     def remaining(self, t: float) -> float:
-        """T*: the nominal time left in this stance (never negative)."""
+        """T*: the nominal time left in this stance (never negative); in the start's longer
+        double stance, as at a touchdown (the MPFC plans the stance that follows it)."""
         return max(self.step_period_s - self.since_touchdown(t), 0.0)
 
     def plan_touchdown(self, t: float, t_remaining_s: float, t_ds_s: float) -> None:
         """A solution's stance time, taken only after double stance (Fig. 4)."""
-        if self.since_touchdown(t) >= t_ds_s:
+        if t - self.touchdown_s >= t_ds_s + self.extra_ds_s:
             self.next_touchdown_s = t + t_remaining_s
 
     def phase(self, t: float, t_ds_s: float) -> tuple[bool, float, float]:
-        """(in double stance, the phase's start, its end): the touchdown, then T_ds to the
-        liftoff; from the liftoff to the planned touchdown in single stance."""
-        in_ds = t - self.touchdown_s < t_ds_s
-        start = self.touchdown_s + (0.0 if in_ds else t_ds_s)
-        end = self.touchdown_s + t_ds_s if in_ds else self.next_touchdown_s
+        """(in double stance, the phase's start, its end): the touchdown, then T_ds (the
+        start's: ``start_ds_s``) to the liftoff; from the liftoff to the planned touchdown in
+        single stance."""
+        ds = t_ds_s + self.extra_ds_s
+        in_ds = t - self.touchdown_s < ds
+        start = self.touchdown_s + (0.0 if in_ds else ds)
+        end = self.touchdown_s + ds if in_ds else self.next_touchdown_s
         return in_ds, start, end
 
 
-def within_height(footholds: list[Foothold], z: float, max_dz: float) -> list[Foothold]:
-    """The footholds with some corner within ``max_dz`` of height ``z`` (all when max_dz <= 0).
+def within_height(footholds: list[Foothold], z: float, max_dz: float,
+                  z_other: float | None = None) -> list[Foothold]:
+    """The footholds that reach into the band a foot may step to (all when max_dz <= 0).
 
-    A foothold's corners span [z_lo, z_hi] on its plane; it is kept when that interval comes
-    within ``max_dz`` of z. The objects are kept, not copied: the solver caches its padded
-    arrays by foothold identity, and the result only changes when the set does."""
+    A foothold's corners span [z_lo, z_hi] on its plane; it is kept when that interval meets
+    the band [z_top - max_dz, z_bottom + max_dz] of the feet's heights ``z`` (the stance
+    foot) and ``z_other`` (where the swing foot lifted off; None: the stance foot's): no foot
+    steps more than ``max_dz`` above the lower foot or below the higher one. So on stairs the
+    feet climb a tread at a time (a swing from tread 1 past tread 2 to tread 3, a 30 cm rise
+    in 0.3 s, caught the nosing: measured), and never into a pit. With the feet more than
+    2 max_dz apart in height the band is the stance foot's own. The objects are kept, not
+    copied: the solver caches its padded arrays by foothold identity, and the result only
+    changes when the set does."""
     if max_dz <= 0.0:
         return footholds
+    other = z if z_other is None else z_other
+    lo, hi = max(z, other) - max_dz, min(z, other) + max_dz
+    if lo > hi:
+        lo, hi = z - max_dz, z + max_dz
     out = []
     for f in footholds:
         v = f.vertices_xy
@@ -102,26 +133,85 @@ def within_height(footholds: list[Foothold], z: float, max_dz: float) -> list[Fo
             continue
         beta, alpha = f.plane_xy
         zs = alpha + v @ beta
-        if float(zs.min()) - max_dz <= z <= float(zs.max()) + max_dz:
+        if float(zs.min()) <= hi and float(zs.max()) >= lo:
             out.append(f)
     return out
 
 
-
 class ReachableFootholds:
-    """``within_height`` of the stance foot, recomputed only when the foothold set changes or
-    the stance foot moves by 1 cm in z (the solver caches its arrays by the list's identity)."""
+    """``within_height`` of the feet, recomputed only when the foothold set changes or a
+    foot's height moves by 1 cm (the solver caches its arrays by the list's identity)."""
 
     def __init__(self, max_dz: float) -> None:
         self.max_dz = max_dz
-        self._kept: tuple[list[Foothold] | None, float, list[Foothold]] = (None, math.nan, [])
+        self._kept: tuple[list[Foothold] | None, float, float, list[Foothold]] = (
+            None, math.nan, math.nan, [])
 
-    def of(self, footholds: list[Foothold], z: float) -> list[Foothold]:
-        src, z_then, kept = self._kept
-        if src is not footholds or not abs(z - z_then) < 0.01:
-            kept = within_height(footholds, z, self.max_dz)
-            self._kept = (footholds, z, kept)
+    def of(self, footholds: list[Foothold], z: float, z_other: float | None = None
+           ) -> list[Foothold]:
+        """The footholds reachable from the stance foot at ``z`` by the foot that lifted off
+        at ``z_other``."""
+        zo = z if z_other is None else z_other
+        src, z_then, zo_then, kept = self._kept
+        if src is not footholds or not abs(z - z_then) < 0.01 or not abs(zo - zo_then) < 0.01:
+            kept = within_height(footholds, z, self.max_dz, zo)
+            self._kept = (footholds, z, zo, kept)
         return kept
+
+
+#: where ``foothold_ahead`` looks for a place to step: metres ahead of the stance foot along
+#: the commanded direction, and to either side of that line (a step's reach at the paper's
+#: speeds: Table I's stones at d_min 35 cm leave up to ~0.55 m between footholds), every cm
+#: (a 27 cm tread less the foot leaves a 3 cm window)
+AHEAD_PROBES_M = tuple(np.round(np.arange(0.05, 0.605, 0.01), 3))
+SIDE_PROBES_M = (-0.20, -0.10, 0.0, 0.10, 0.20)
+
+
+def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
+                   direction_xy: Sequence[float]) -> bool:
+    """Whether some foothold lies ahead within a step: any of the probe points
+    (``AHEAD_PROBES_M`` along ``direction_xy`` from the stance foot, ``SIDE_PROBES_M`` across
+    it) inside one of ``footholds``. False at the end of a course (the last stone, a beam's
+    or a landing's far edge, the reachable footholds filtered by height first), where stepping
+    on would step in place until the feet cross (ours; the paper's experiments end before)."""
+    d = np.asarray(direction_xy, dtype=float)
+    n = float(np.hypot(d[0], d[1]))
+    if n < 1e-9 or not footholds:
+        return bool(footholds)
+    d = d / n
+    side = np.array([-d[1], d[0]])
+    a = np.asarray(AHEAD_PROBES_M)[:, None, None] * d
+    b = np.asarray(SIDE_PROBES_M)[None, :, None] * side
+    pts = (np.asarray(stance_xy, dtype=float)[:2] + a + b).reshape(-1, 2)
+    for f in footholds:
+        fa, fc = f.halfspaces_xy
+        if np.any(np.all(pts @ fa.T <= fc + 1e-9, axis=1)):
+            return True
+    return False
+
+
+class Halt:
+    """Stop where nothing ahead is reachable, and go on when something is (ours).
+
+    At each touchdown, ``foothold_ahead`` of the new stance foot along the command. With
+    nothing ahead the gait steps to a stop (desired velocity 0) and asks to stand in every
+    double stance (``STOPPING``: the MPFC publishes the standing gait state there, and the OSC
+    hands over to its standing controller in the first double stance with the CoM at rest, as
+    for the radio's stand). It goes on (``RUNNING``) at the first touchdown with a foothold
+    ahead (a command in another direction, perception's new footholds)."""
+
+    RUNNING, STOPPING = "running", "stopping"
+
+    def __init__(self) -> None:
+        self.state = self.RUNNING
+
+    def update(self, footholds: Sequence[Foothold], stance_xy: Sequence[float],
+               direction_xy: Sequence[float]) -> bool:
+        """At a touchdown: the new state; True when it changed."""
+        before = self.state
+        ahead = foothold_ahead(footholds, stance_xy, direction_xy)
+        self.state = self.RUNNING if ahead else self.STOPPING
+        return self.state != before
 
 
 class MapHeight:

@@ -23,6 +23,8 @@ class MpfcParams:
     com_height_m: float = spec(0.85, lo=0.0, lo_open=True, unit="m")  # H
     t_ss_s: float = spec(0.30, lo=0.0, lo_open=True, unit="s")  # T_ss
     t_ds_s: float = spec(0.10, lo=0.0, lo_open=True, unit="s")  # T_ds
+    #: the first double stance, from standing (ours: processes.mpfc.gait.GaitClock)
+    t_ds_start_s: float = spec(0.4, lo=0.0, hi=2.0, unit="s")
     w_time: float = spec(100.0, lo=0.0, unit="1/s^2")  # w_T
     step_width_m: float = spec(0.20, lo=0.0, unit="m")  # l
     w_ankle: float = spec(0.01, lo=0.0, unit="1/(N m)^2")  # w_u
@@ -39,7 +41,7 @@ class MpfcParams:
     gravity_mps2: float = spec(9.81, lo=0.0, lo_open=True, unit="m/s^2")
     lateral_instant_transfer: bool = True  # Appendix A
     big_m_m: float = spec(10.0, lo=0.0, lo_open=True, unit="m")  # M of (20)
-    crossover_margin_m: float = spec(0.0, lo=0.0, unit="m")
+    crossover_margin_m: float = spec(0.06, lo=0.0, unit="m")  # ours: blade width + clearance
     trust_region_start_s: float = spec(0.27, lo=0.0, unit="s")
     trust_region_rate_mps: float = spec(1.0, lo=0.0, unit="m/s")
     foothold_max_count: int = spec(20, lo=1, hi=200)

@@ -12,15 +12,21 @@ Footholds come from ``params.footholds``: ``channel`` (the foothold set from S3,
 sim's ground truth of its terrain: ``publish_footholds``) or ``flat`` (level ground around
 the robot). (A robot process knows no terrain file: the truth comes over the bus.)
 
-Footholds wholly more than ``params.foothold_max_height_m`` (default 0.35 m) above or below
-the stance foot are left out of the solve (ours, not in the paper): the MPFC's costs do not see
-footstep height (R has a zero z weight, Table V), so it would otherwise take a level-looking
-step into a pit or off a landing that S3 rightly finds flat and safe, but that no leg reaches.
+Footholds wholly more than ``params.foothold_max_height_m`` (default 0.2 m) above the lower
+foot or below the higher one (the stance foot, and the swing foot where it lifted off) are left
+out of the solve (ours, not in the paper): the MPFC's costs do not see footstep height (R has
+a zero z weight, Table V), so it would otherwise take a level-looking step into a pit or off a
+landing that S3 rightly finds flat and safe, but that no leg reaches, or swing a foot past a
+tread to the next (``processes.mpfc.gait.within_height``). Where none of the reachable
+footholds lies ahead within a step (the end of a course), the gait steps to a stop and stands,
+and says so (``processes.mpfc.gait.Halt``; ours): stepping on in place ended with the feet
+crossed and a fall, measured at the end of a stepping-stone course.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -36,7 +42,7 @@ from lcmtypes import (
     robot_state_t,
 )
 from processes.kinematics import AlipKinematics
-from processes.mpfc.gait import GaitClock, MapHeight, ReachableFootholds
+from processes.mpfc.gait import GaitClock, Halt, MapHeight, ReachableFootholds, within_height
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver
 from runtime.codecs import elevation_map_from_msg, footholds_from_msg
@@ -45,13 +51,15 @@ from runtime.geometry import Foothold
 from runtime.node import Node
 from runtime.params import spec
 
+log = logging.getLogger(__name__)
+
 LEFT, RIGHT = 0, 1
 # (mpfc_output_t's consts: the one list of the gait's phases)
 GAIT_SS = (mpfc_output_t.GAIT_LEFT_SS, mpfc_output_t.GAIT_RIGHT_SS)  # single stance on l / r
 GAIT_DS = (mpfc_output_t.GAIT_DS_AFTER_LEFT, mpfc_output_t.GAIT_DS_AFTER_RIGHT)  # after l / r
 GAIT_STANDING = mpfc_output_t.GAIT_STANDING
 STATUS = {"optimal": 0, "time_limited": 1, "infeasible": 2}
-DEFAULT_MAX_HEIGHT_M = 0.35  # two 15 cm stairs (the horizon's second step) and some margin
+DEFAULT_MAX_HEIGHT_M = 0.2  # one 15 cm tread (Fig. 11), Table I's stone heights, and a margin
 VARIANTS = ("hardware", "simulation")  # the columns of Table V
 
 #: the gains file (hw_config/gains/mpfc.yaml): Table V, in the column ``Params.variant`` names
@@ -107,9 +115,12 @@ class MpfcNode(Node):
         self.max_height_m = max_height_m
         self._reachable = ReachableFootholds(max_height_m)
         self.map = MapHeight()
-        self.clock = GaitClock(params.t_s2s_s)
+        self.clock = GaitClock(params.t_s2s_s, params.t_ds_s, params.t_ds_start_s)
+        self.halt = Halt()
         self.stance: int | None = None  # the clock's, as of the last tick
         self.stance_pos = np.zeros(3)
+        #: the swing foot's height where it lifted off (at the stance's start, both feet down)
+        self.liftoff_z: float | None = None
         self.plan: MpfcSolution | None = None
         self.last_status = "none"
         self.solves = 0
@@ -157,28 +168,40 @@ class MpfcNode(Node):
         yaw = self.kin.pelvis_yaw()
         p = self.params
         clock = self.clock
-        if clock.advance(t, state.in_contact):
+        if clock.advance(t, state.in_contact, bool(np.hypot(v[0], v[1]) < 0.1)):
             self.solver.reset()
         if clock.stance is None:
             self.last_status = ("started with a foot in the air: waiting for its touchdown "
                                 "to take the gait from the robot")
             return
-        self.stance = clock.stance
+        stance_before, self.stance = self.stance, clock.stance
+        if self.stance != stance_before:  # a touchdown (or the start): both feet down
+            self.liftoff_z = float(self.kin.foot_points[1 - self.stance][2])
         self.stance_pos = self.kin.foot_points[self.stance].copy()
         t_star = clock.remaining(t)
         x = self.kin.alip_state(self.stance_pos, yaw)
         # The command is in the pelvis-yaw frame, which is the stance frame's orientation.
+        c, s = math.cos(yaw), math.sin(yaw)
+        ahead = (c * self.vdes[0] - s * self.vdes[1], s * self.vdes[0] + c * self.vdes[1])
+        # (ahead: what the stance foot reaches, for the next two steps: on stairs the tread
+        # above the upper foot is out of the swing foot's band but the step after takes it)
+        if self.stance != stance_before and self.halt.update(
+                within_height(self.footholds, float(self.stance_pos[2]), self.max_height_m),
+                self.stance_pos[:2], ahead):
+            log.warning("MPFC at t=%.2f s, stance foot at (%.2f, %.2f): %s", t,
+                        self.stance_pos[0], self.stance_pos[1], self._halt_text())
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",
             self.stance_pos,
             t_star,
-            self.vdes,
+            self.vdes if self.halt.state == Halt.RUNNING else np.zeros(2),
             self._reachable_footholds(),
             yaw=yaw,
         )
         self.solves += 1
-        self.last_status = sol.status
+        self.last_status = sol.status if self.halt.state == Halt.RUNNING else \
+            f"{sol.status}; {self._halt_text()}"
         if sol.has_plan:  # (its stance time is ignored during double stance, Fig. 4)
             clock.plan_touchdown(t, sol.t_remaining_opt_s, p.t_ds_s)
             self.plan = sol
@@ -186,8 +209,14 @@ class MpfcNode(Node):
             self.failures += 1
         self._publish(ctx, state, sol, sol.status, yaw, x)
 
+    def _halt_text(self) -> str:
+        if self.halt.state == Halt.RUNNING:
+            return "a foothold ahead within a step: walking on"
+        return ("no foothold ahead within a step: stepping to a stop and standing (a command "
+                "another way or new footholds ahead walk on)")
+
     def _reachable_footholds(self) -> list[Foothold]:
-        return self._reachable.of(self.footholds, float(self.stance_pos[2]))
+        return self._reachable.of(self.footholds, float(self.stance_pos[2]), self.liftoff_z)
 
     # -- outputs -------------------------------------------------------------------------------
     def _publish(
@@ -210,6 +239,8 @@ class MpfcNode(Node):
         else:
             in_ds, start, end = self.clock.phase(t, self.params.t_ds_s)
             out.gait_state = (GAIT_DS if in_ds else GAIT_SS)[self.stance]
+            if in_ds and self.halt.state == Halt.STOPPING:
+                out.gait_state = GAIT_STANDING  # stand here: the OSC hands over at rest
             out.stance = self.stance
             step = plan.footsteps[0].copy()
             if self.height_lookup:

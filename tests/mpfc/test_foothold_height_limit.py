@@ -32,6 +32,15 @@ def test_a_sloped_foothold_counts_by_its_nearest_corner() -> None:
     assert within_height([ramp], 0.8, 0.35) == []
 
 
+def test_a_foot_steps_at_most_the_limit_above_the_lower_foot_or_below_the_higher_one() -> None:
+    ground, t1, t2, t3 = (_square(0.0, 0.0), _square(0.4, 0.15), _square(0.8, 0.3),
+                          _square(1.2, 0.45))
+    # stance on tread 2, the swing foot lifted off tread 1: tread 3 is 30 cm above it
+    assert within_height([ground, t1, t2, t3], 0.3, 0.2, z_other=0.15) == [t1, t2]
+    # both feet on tread 2: tread 3 is one rise up
+    assert within_height([ground, t1, t2, t3], 0.3, 0.2, z_other=0.3) == [t1, t2, t3]
+
+
 def test_a_bad_height_limit_is_a_clear_config_error() -> None:
     from runtime.builder import build_node
 

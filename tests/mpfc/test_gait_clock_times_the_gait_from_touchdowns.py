@@ -35,3 +35,22 @@ def test_a_solution_moves_the_touchdown_only_after_double_stance() -> None:
     assert c.next_touchdown_s == pytest.approx(0.4)
     c.plan_touchdown(0.15, 0.2, T_DS)
     assert c.next_touchdown_s == pytest.approx(0.35)
+
+
+def test_a_standing_start_holds_double_stance_for_the_weight_shift_and_then_times_as_usual(
+) -> None:
+    c = GaitClock(T_SS + T_DS, T_DS, start_ds_s=0.4)
+    assert c.advance(1.0, (True, True), at_rest=True) and c.stance == LEFT
+    assert c.phase(1.35, T_DS) == (True, 1.0, pytest.approx(1.4))  # still double stance
+    assert c.remaining(1.2) == pytest.approx(T_SS + T_DS)  # planned as at a touchdown
+    assert c.remaining(1.4) == pytest.approx(T_SS)  # the lift-off: T_ss left
+    c.plan_touchdown(1.3, 0.1, T_DS)  # in the long double stance: ignored
+    assert c.next_touchdown_s == pytest.approx(1.7)
+    assert not c.advance(1.7, (True, True)) and c.stance == RIGHT
+    assert c.phase(1.75, T_DS) == (True, pytest.approx(1.7), pytest.approx(1.8))  # T_ds again
+
+
+def test_a_start_while_moving_takes_no_weight_shift() -> None:
+    c = GaitClock(T_SS + T_DS, T_DS, start_ds_s=0.4)
+    assert c.advance(1.0, (True, True), at_rest=False)
+    assert c.phase(1.15, T_DS)[0] is False and c.next_touchdown_s == pytest.approx(1.4)

@@ -1,0 +1,33 @@
+"""processes.mpfc.gait.Halt and foothold_ahead, with no LCM: at the end of a course (no
+foothold within a step ahead) the gait stops, and it walks on where one appears."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from processes.mpfc.gait import Halt, foothold_ahead
+from runtime.geometry import Foothold
+
+
+def _rect(x0: float, x1: float, y0: float = -0.3, y1: float = 0.3) -> Foothold:
+    return Foothold.from_polygon(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
+
+
+def test_a_foothold_within_a_step_ahead_is_found_and_one_behind_or_beyond_reach_is_not(
+) -> None:
+    platform = _rect(-1.0, 0.03)  # the stance foot stands at its far edge
+    assert not foothold_ahead([platform], (0.0, 0.0), (1.0, 0.0))
+    assert foothold_ahead([platform, _rect(0.45, 0.8)], (0.0, 0.0), (1.0, 0.0))  # a stone
+    assert not foothold_ahead([platform, _rect(0.75, 1.0)], (0.0, 0.0), (1.0, 0.0))  # too far
+    assert foothold_ahead([platform], (0.0, 0.0), (-1.0, 0.0))  # walking back: the platform
+    assert foothold_ahead([platform], (0.0, 0.0), (0.0, 0.0))  # no command: nothing to stop
+
+
+def test_the_halt_stops_at_the_course_end_and_walks_on_when_a_foothold_appears() -> None:
+    h, platform = Halt(), _rect(-1.0, 0.03)
+    assert not h.update([platform, _rect(0.3, 0.6)], (0.0, 0.0), (1.0, 0.0))
+    assert h.state == Halt.RUNNING
+    assert h.update([platform], (0.0, 0.0), (1.0, 0.0)) and h.state == Halt.STOPPING
+    assert not h.update([platform], (0.0, 0.0), (1.0, 0.0))  # (stays: no change to say)
+    assert h.update([platform, _rect(0.3, 0.6)], (0.0, 0.0), (1.0, 0.0))
+    assert h.state == Halt.RUNNING
