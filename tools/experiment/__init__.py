@@ -7,10 +7,12 @@ how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth
 (23 cm wide) and ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``), with
 ground-truth footholds from the sim, or with ``--perception`` the footholds of S3.
 
-Reported per trial, from the sim's ground truth: distance walked, mean forward speed against the
-command, falls (pelvis below 0.6 m over the terrain under it), footsteps (touchdowns) and
-footsteps outside every foothold, and whether the trial succeeded (no fall, speed within 15% of
-the command, no footstep outside a foothold).
+Reported per trial, from the sim's ground truth: distance walked, mean forward speed (from 1 s
+after the release) against the command, falls (pelvis below 0.6 m over the terrain under it),
+footsteps (touchdowns) and footsteps outside every foothold, whether the robot reached the
+course's end, and whether the trial succeeded (``tools.experiment.judge``: on a course with an
+end, reaching it without a fall and with no footstep outside a foothold; on flat ground, no
+fall, speed within 15% of the command and no footstep outside).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from runtime.config import HW_CONFIG_DIR
 from tools.benchmarks.common import print_table, write_json
 from tools.experiment.courses import PERCEPTION_STAIRS_DEPTH_M, _terrain_file
 from tools.experiment.judge import Judge, Trial
+from tools.experiment.operator import LATERAL_GAIN, LATERAL_MAX_MPS
 from tools.experiment.trials import run_live_trial, run_trial
 from tools.report import print_cpu, print_loops, print_realtime
 
@@ -56,6 +59,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="the MPFC's step-timing optimisation off: t_min = t_max = T_ss (the "
                          "paper's Fixed-T; default Opt-T)")
     ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
+    ap.add_argument("--lateral-gain", type=float, default=LATERAL_GAIN, metavar="K",
+                    help="the operator steers back onto the course's centre line at K m/s per "
+                         f"metre off it, at most {LATERAL_MAX_MPS} m/s (default %(default)s)")
     ap.add_argument("--profile", type=Path, default=HW_CONFIG_DIR / "experiment.yaml")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument(
@@ -100,14 +106,14 @@ def main(argv: list[str] | None = None) -> int:
             run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                            args.vx, args.launch, base,
                            args.log_dir / f"trial{i}" if args.log_dir else None, args.depth,
-                           args.dashboard, args.fixed_timing)
+                           args.dashboard, args.fixed_timing, args.lateral_gain)
             for i in range(args.trials)
         ]
     else:
         trials = [
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                       args.vx, args.profile, depth=args.depth,
-                      fixed_timing=args.fixed_timing)
+                      fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain)
             for i in range(args.trials)
         ]
     for tr in trials:
@@ -179,7 +185,8 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     specs = [TrialSpec(args.name, args.duration, args.seed + i,
                        v if name == "dmin" else args.dmin, args.perception, args.vx,
                        str(args.profile), v if name == "depth" else args.depth,
-                       fixed_timing=args.fixed_timing, point=(f"{name}_m", v))
+                       fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
+                       point=(f"{name}_m", v))
              for v in grid for i in range(args.trials)]
     jobs = args.jobs or os.cpu_count() or 1
     print(f"sweep {args.name} {name} over {grid}: {len(specs)} trials, {jobs} at a time, "

@@ -86,9 +86,11 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
              work: Path, mode: str | None = None, depth: float | None = None,
              fixed_timing: bool = False
-             ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float]]:
+             ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float],
+                        float | None]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
-    processes, the terrain's ground-truth footholds for the judge, its height)."""
+    processes, the terrain's ground-truth footholds for the judge, its height, the course's
+    end: the near edge in x of its last surface, None without one)."""
     from sim import terrain as terrain_mod
 
     terrain = _terrain_file(name, dmin, seed, work, depth)
@@ -98,6 +100,17 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
     # the foot that the controller aims within
     ter = terrain_mod.load_terrain(terrain)
     footholds = list(ter.landing_surfaces)
-    return prof_path, load_profile(prof_path), launch, footholds, ter.height_at
+    return (prof_path, load_profile(prof_path), launch, footholds, ter.height_at,
+            course_end_x(ter))
+
+
+def course_end_x(ter: Any) -> float | None:
+    """Where a course ends: the near edge (x) of its last box, the far platform of stones
+    and beam or the stairs' landing; None for a terrain without boxes (flat ground) or with
+    its boxes not in a row along x (``blocks``)."""
+    if not ter.boxes or ter.name not in ("stones", "beam", "stairs"):
+        return None
+    last = ter.boxes[-1]
+    return float(last.center[0] - 0.5 * last.size[0])
 
 

@@ -1,5 +1,13 @@
 """The judge of a walking trial: its figures (``Trial``) and how they are judged from the sim's
-ground truth (falls, distance, speed against the command, footsteps outside every foothold)."""
+ground truth (falls, distance, speed against the command, footsteps outside every foothold,
+whether the robot reached the course's end).
+
+The success rule. On a course with an end (stones, beam, stairs: its last surface, the far
+platform or the landing) a trial succeeds when the robot reaches that surface (its pelvis
+``GOAL_PAST_M`` past the surface's near edge) without a fall and with no footstep outside a
+foothold; it is "crossed" when it reaches it without a fall, footsteps aside (the paper's plain
+traversal). On flat ground (no end) it succeeds with no fall, the mean speed within 15 % of the
+command and no footstep outside; crossed is no fall."""
 
 from __future__ import annotations
 
@@ -13,6 +21,10 @@ FALL_HEIGHT_M = 0.6
 MIN_SWING_S = 0.1  # shorter airborne spells are contact flicker, not steps
 HEADING_GAIN = 1.0  # operator's yaw rate per radian of heading error (Section VIII-A)
 SPEED_TOLERANCE = 0.15
+#: the mean speed is measured from this long after the release: the start (the weight shift
+#: onto the first stance foot and the first steps' acceleration) is not walking at the command
+SPEED_FROM_S = 1.0
+GOAL_PAST_M = 0.15  # the pelvis this far onto the course's last surface: it has crossed
 
 
 @dataclass
@@ -32,6 +44,10 @@ class Trial:
     footsteps: int = 0
     footsteps_outside: int = 0
     success: bool = False
+    #: the course's end (its last surface's near edge, x), None on a course without one
+    goal_x_m: float | None = None
+    reached_goal_s: float = -1.0  # when the pelvis got GOAL_PAST_M past it (-1: never)
+    crossed: bool = False  # reached the end (or, without one, the whole trial) without a fall
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops
@@ -45,13 +61,18 @@ class Judge:
     """Watches GROUND_TRUTH: falls, distance, speed and where each foot touches down."""
 
     def __init__(self, footholds: list[Any], walk_start_s: float,
-                 ground: Callable[[float, float], float] | None = None) -> None:
+                 ground: Callable[[float, float], float] | None = None,
+                 goal_x: float | None = None) -> None:
         self.footholds = footholds
+        self.goal_x = goal_x
+        self.goal_t: float | None = None
         self.walk_start_s = walk_start_s
         #: height of the terrain under (x, y): a fall is the pelvis below FALL_HEIGHT_M over
         #: it (on stairs a robot lying on the landing has its pelvis above 0.6 m)
         self.ground = ground if ground is not None else (lambda x, y: 0.0)
         self.x0: float | None = None
+        self.speed_x0: float | None = None  # where and when the speed's window starts
+        self.speed_t0 = 0.0
         self.x_last = 0.0
         self.t_last = 0.0
         self.min_z = np.inf
@@ -70,7 +91,12 @@ class Judge:
             if self.x0 is None:
                 self.x0 = gt.q[0]
                 self.t0 = t
+            if self.speed_x0 is None and t >= self.t0 + SPEED_FROM_S:
+                self.speed_x0, self.speed_t0 = gt.q[0], t
             self.x_last, self.t_last = gt.q[0], t
+            if (self.goal_t is None and self.goal_x is not None and self.fall_t is None
+                    and gt.q[0] >= self.goal_x + GOAL_PAST_M):
+                self.goal_t = t
             for i in (0, 1):
                 if not gt.foot_contact[i] and self.prev_contact[i]:
                     self.lift_t[i] = t
@@ -83,6 +109,12 @@ class Judge:
                 ):
                     self.touchdowns.append((t, np.asarray(gt.foot_pos[i], dtype=float)))
         self.prev_contact = list(gt.foot_contact)
+
+    def finished(self, linger_s: float = 2.0) -> bool:
+        """The trial has nothing more to show: a fall, or ``linger_s`` after reaching the end
+        (time to stop on the last surface, or to step off it)."""
+        return self.fall_t is not None or (
+            self.goal_t is not None and self.t_last >= self.goal_t + linger_s)
 
     def outside(self) -> int:
         if not self.footholds:
@@ -101,17 +133,21 @@ def _verdict(trial: Trial, judge: Judge, launch: list[str]) -> Trial:
     trial.min_pelvis_height_m = float(judge.min_z)
     if judge.x0 is not None:
         trial.distance_m = float(judge.x_last - judge.x0)
-        span = judge.t_last - judge.t0
-        trial.mean_velocity_mps = trial.distance_m / span if span > 0 else 0.0
+        if judge.speed_x0 is not None and judge.t_last > judge.speed_t0:
+            trial.mean_velocity_mps = float((judge.x_last - judge.speed_x0)
+                                            / (judge.t_last - judge.speed_t0))
     trial.velocity_error_ratio = (abs(trial.mean_velocity_mps - vx) / abs(vx)) if vx else 0.0
     trial.footsteps = len(judge.touchdowns)
     trial.footsteps_outside = judge.outside()
-    trial.success = (
-        not trial.fell
-        and trial.velocity_error_ratio <= SPEED_TOLERANCE
-        and trial.footsteps_outside == 0
-        and trial.footsteps > 0
-    )
+    trial.goal_x_m = judge.goal_x
+    trial.reached_goal_s = judge.goal_t if judge.goal_t is not None else -1.0
+    if judge.goal_x is None:
+        trial.crossed = not trial.fell
+        trial.success = (trial.crossed and trial.velocity_error_ratio <= SPEED_TOLERANCE
+                         and trial.footsteps_outside == 0 and trial.footsteps > 0)
+    else:
+        trial.crossed = not trial.fell and judge.goal_t is not None
+        trial.success = trial.crossed and trial.footsteps_outside == 0
     if "osc" not in launch:
         trial.notes.append("no walking controller in the experiment profile")
     return trial

@@ -38,13 +38,15 @@ class TrialSpec:
     profile: str
     depth: float | None = None
     fixed_timing: bool = False  # the MPFC's step timing fixed (the paper's Fixed-T)
+    lateral_gain: float = 0.0  # the operator's steering back onto the centre line, 1/s
     #: the swept parameter's name and value (for the summary), e.g. ("dmin_m", 0.5)
     point: tuple[str, float] = ("", 0.0)
 
     def key(self) -> str:
         """What makes a trial the same trial when a sweep resumes."""
         return json.dumps([self.name, self.duration_s, self.seed, self.dmin, self.perception,
-                           self.vx, self.profile, self.depth, self.fixed_timing],
+                           self.vx, self.profile, self.depth, self.fixed_timing,
+                           self.lateral_gain],
                           sort_keys=True)
 
 
@@ -62,10 +64,9 @@ def run_spec(spec: TrialSpec) -> dict[str, Any]:
     t0 = time.perf_counter()
     tr: Trial = run_trial(spec.name, spec.duration_s, spec.seed, spec.dmin, spec.perception,
                           spec.vx, Path(spec.profile), depth=spec.depth,
-                          fixed_timing=spec.fixed_timing)
+                          fixed_timing=spec.fixed_timing, lateral_gain=spec.lateral_gain)
     rec = {k: v for k, v in asdict(tr).items() if k not in ("timing", "cpu", "realtime")}
-    rec.update(key=spec.key(), point=list(spec.point), worker_wall_s=time.perf_counter() - t0,
-               crossed=not tr.fell)
+    rec.update(key=spec.key(), point=list(spec.point), worker_wall_s=time.perf_counter() - t0)
     return rec
 
 
@@ -119,9 +120,8 @@ def run_sweep(specs: Sequence[TrialSpec], out_dir: Path, jobs: int | None = None
 
 
 def summarise(trials: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per swept value: trials, success rate (the experiment's rule: no fall, speed within 15 %
-    of the command, no footstep outside a foothold), crossed-without-a-fall rate, falls, and
-    the mean distance and speed."""
+    """Per swept value: trials, success rate (the judge's rule, ``tools.experiment.judge``),
+    crossed-without-a-fall rate, falls, and the mean distance and speed."""
     points: dict[tuple[str, float], list[dict[str, Any]]] = {}
     for r in trials:
         points.setdefault((str(r["point"][0]), float(r["point"][1])), []).append(r)

@@ -22,7 +22,7 @@ from runtime.scheduling import pin_to_supervisor_host
 from tools.benchmarks.common import progress
 from tools.experiment.courses import _prepare
 from tools.experiment.judge import Judge, Trial, _verdict
-from tools.experiment.operator import Operator
+from tools.experiment.operator import LATERAL_GAIN, Operator
 from tools.report import analyse, load_budgets
 
 
@@ -37,6 +37,7 @@ def run_trial(
     setup: Callable[[Harness], None] | None = None,
     depth: float | None = None,
     fixed_timing: bool = False,
+    lateral_gain: float = LATERAL_GAIN,
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
     (or instrument) the harness's nodes before the run; ``depth`` is the stairs' tread depth
@@ -44,19 +45,19 @@ def run_trial(
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        _, profile, launch, footholds, ground = _prepare(base_profile, name, dmin, seed,
-                                                         perception, work, depth=depth,
-                                                         fixed_timing=fixed_timing)
+        _, profile, launch, footholds, ground, goal = _prepare(
+            base_profile, name, dmin, seed, perception, work, depth=depth,
+            fixed_timing=fixed_timing)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
             Binding(
-                Operator(vx),
+                Operator(vx, lateral_gain),
                 inputs={"ground_truth": gt_channel},
                 outputs={"command": profile.channels["command"].name},
             )
         )
-        judge = Judge(footholds, walk_start_s=0.0, ground=ground)
+        judge = Judge(footholds, walk_start_s=0.0, ground=ground, goal_x=goal)
         h.tap(gt_channel, judge)
         if setup is not None:
             setup(h)
@@ -70,9 +71,9 @@ def run_trial(
                   disable=None, leave=False, bar_format="{l_bar}{bar}| {n:.1f}/{total} sim s "
                   "[{elapsed}<{remaining}]") as bar:
             t_us = 0
-            while t_us < end_us and judge.fall_t is None:
+            while t_us < end_us and not judge.finished():
                 nxt = min(t_us + step_us, end_us)
-                h.run_until(nxt, stop=lambda: judge.fall_t is not None)
+                h.run_until(nxt, stop=judge.finished)
                 bar.update((nxt - t_us) / 1e6)
                 t_us = nxt
         trial.wall_s = time.perf_counter() - t0
@@ -93,6 +94,7 @@ def run_live_trial(
     depth: float | None = None,
     dashboard: bool = False,
     fixed_timing: bool = False,
+    lateral_gain: float = LATERAL_GAIN,
 ) -> Trial:
     """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
@@ -104,13 +106,12 @@ def run_live_trial(
         work = Path(tmp)
         logs = log_dir if log_dir is not None else work / "logs"
         logs.mkdir(parents=True, exist_ok=True)
-        prof_path, profile, launch, footholds, ground = _prepare(base_profile, name, dmin,
-                                                                 seed, perception, work, mode,
-                                                                 depth, fixed_timing)
+        prof_path, profile, launch, footholds, ground, goal = _prepare(
+            base_profile, name, dmin, seed, perception, work, mode, depth, fixed_timing)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
-        judge = Judge(footholds, math.inf, ground)
-        operator = Operator(vx)
+        judge = Judge(footholds, math.inf, ground, goal)
+        operator = Operator(vx, lateral_gain)
         # this process is the operator's radio and the judge: a laptop tool, on its CPUs (as
         # the supervisor), never on the NUC's, and its CPU goes into the table as a watcher's
         pin_to_supervisor_host(profile)
