@@ -235,6 +235,10 @@ class CassieModel:
         """Midpoint of a foot's two contact points (world): the swing-foot task point."""
         return 0.5 * (self.p_contact[2 * side] + self.p_contact[2 * side + 1])
 
+    def foot_center_vel(self, side: int) -> np.ndarray:
+        """World velocity of ``foot_center``."""
+        return 0.5 * (self.v_contact[2 * side] + self.v_contact[2 * side + 1])
+
     def foot_center_l(self, side: int) -> list[float]:
         """``foot_center`` as a list of floats (the per-tick path)."""
         f, r = self.p_contact_l[2 * side], self.p_contact_l[2 * side + 1]

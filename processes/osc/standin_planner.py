@@ -47,12 +47,23 @@ class StandInPlanner:
         self.t_next = 0.0
         self.stance_pos = np.zeros(3)
         self.next_pos = np.zeros(3)
+        #: the seeding plan's footstep, kept until that step's touchdown (``seed``)
+        self._seeded_step: np.ndarray | None = None
+        #: per foot, the ground height under it, read at the liftoff of the other foot (when
+        #: it has stood through double stance): ``measured_ground``'s heights
+        self._ground_z: list[float | None] = [None, None]
 
     def _foot(self, side: int) -> np.ndarray:
-        """A foot's contact midpoint, on the flat ground (z = 0) unless ``measured_ground``."""
+        """A foot's contact midpoint, on the flat ground (z = 0) unless ``measured_ground``:
+        then at the ground height last read under that foot while it stood (its height at the
+        planned touchdown is taken only for a foot never seen standing). Read at the planned
+        touchdown, a foot that landed late was still above the ground: the heights ratcheted
+        up each step and the pelvis rose 5 cm in 5 s of stepping in place (measured)."""
         p = self.m.foot_center(side).copy()
         if not self.measured_ground:
             p[2] = 0.0
+        elif self._ground_z[side] is not None:
+            p[2] = self._ground_z[side]
         return p
 
     def seed(self, plan: mpfc_output_t) -> None:
@@ -64,6 +75,11 @@ class StandInPlanner:
         self.t_next = float(plan.next_switch_time_s)
         self.stance_pos = np.array(plan.stance_foot_world, dtype=float)
         self.yaw = float(plan.stance_yaw)
+        self._ground_z = [None, None]
+        self._ground_z[self.stance] = float(self.stance_pos[2])
+        step = np.asarray(plan.next_footstep_world, dtype=float)
+        self._seeded_step = step.copy() if step.shape == (3,) and np.isfinite(step).all() \
+            else None
 
     def plan(self, t: float, q: np.ndarray, v: np.ndarray) -> mpfc_output_t:
         """Advance the gait clock to t and return the plan for the state (q, v)."""
@@ -78,6 +94,7 @@ class StandInPlanner:
         if self.hold_double and not self.single and self.t_next < t + 0.05:
             self.t_next = t + 0.05
         if self.single and t >= self.t_next:  # planned touchdown: the swing foot lands
+            self._seeded_step = None  # the seeding plan's step is taken: plan our own
             self.stance = 1 - self.stance
             self.stance_pos = self._foot(self.stance)
             self.single = False
@@ -85,6 +102,8 @@ class StandInPlanner:
             self.t_next = self.t_switch + self.t_ds
         elif not self.single and t >= self.t_next:  # liftoff of the other foot
             self.single = True
+            if self.measured_ground:  # the stance foot has stood through double stance
+                self._ground_z[self.stance] = float(m.foot_center(self.stance)[2])
             self.t_switch = self.t_next
             self.t_next = self.t_switch + self.t_ss
 
@@ -124,8 +143,16 @@ class StandInPlanner:
         fwd, side = xT - x0, yT - y0
         side = min(max(side, -0.6), -0.08) if nxt == RIGHT else max(min(side, 0.6), 0.08)
         fwd = max(min(fwd, 0.4), -0.4)
+        # stepping in place, the swing foot comes down on the ground it lifted off from
+        gz = self._ground_z[nxt] if self.measured_ground else None
         target = np.array([self.stance_pos[0] + cy * fwd - sy * side,
-                           self.stance_pos[1] + sy * fwd + cy * side, self.stance_pos[2]])
+                           self.stance_pos[1] + sy * fwd + cy * side,
+                           self.stance_pos[2] if gz is None else gz])
+        if self._seeded_step is not None:
+            # Until the seeding plan's step lands, its footstep stands: a new target mid-swing
+            # (a one-step stop from walking speed asks 0.4 m) made the foot overshoot by 0.3 m
+            # and 0.3 m up, and the robot fell stepping in place (measured, MPFC killed at 2 s).
+            target = self._seeded_step.copy()
         self.next_pos = target
 
         msg = mpfc_output_t()

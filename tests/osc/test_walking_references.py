@@ -76,3 +76,31 @@ def test_com_plane_follows_step_height_low_pass_and_clip():
     plane = ComHeightPlane(p)
     _, _, kx = plane.reference(0.0, st, np.array([0.0, 0.4, 0.1]), np.pi / 2, com, np.zeros(3))
     assert abs(kx - 0.25) < 1e-9
+
+
+def test_a_swing_restarted_mid_flight_starts_from_the_foot_and_does_not_overshoot():
+    """After a safe-mode episode the controller takes a swing back mid-flight: the new
+    polynomial runs from now, from the foot's position and velocity, to the target, and
+    stays between the foot and the target fore-aft (on the liftoff's time axis it had to pass
+    the mid-swing waypoint within tens of ms and overshot the target by 0.19 m)."""
+    traj = SwingFootTrajectory(degree=8)
+    liftoff, touchdown, t = 2.0, 2.3, 2.095  # 95 ms into a 0.3 s swing
+    p_now = np.array([0.49, 0.126, 0.144])
+    v_now = np.array([1.1, 0.0, 0.6])
+    des = np.array([0.70, 0.12, 0.0])
+    traj.start(t, liftoff, touchdown, p_now, v_now)
+    traj.update(t, touchdown, des, 0.1)
+    pos, vel, _ = traj.evaluate(t)
+    np.testing.assert_allclose(pos, p_now, atol=1e-9)
+    np.testing.assert_allclose(vel, v_now, atol=1e-6)
+    xs = [traj.evaluate(s)[0][0] for s in np.linspace(t, touchdown, 60)]
+    assert max(xs) <= des[0] + 0.02, max(xs)
+    np.testing.assert_allclose(traj.evaluate(touchdown)[0], des, atol=1e-9)
+
+
+def test_a_swing_begun_at_its_liftoff_is_planned_on_the_liftoff_time_axis():
+    """The restart rule leaves a swing begun on its first tick as it was."""
+    traj = SwingFootTrajectory(degree=8)
+    traj.start(1.0005, 1.0, 1.3, np.zeros(3), np.array([0.3, 0.0, 0.0]))
+    assert traj.liftoff == 1.0 and abs(traj.T - 0.3) < 1e-12
+    np.testing.assert_allclose(traj.evaluate(1.0005)[1], 0.0, atol=1e-12)
