@@ -29,6 +29,28 @@ _jit = numba.njit(cache=True, nogil=True)
 
 
 @_jit
+def cholesky_upper(P: np.ndarray, R: np.ndarray) -> bool:
+    """The upper Cholesky factor of symmetric ``P`` (its upper triangle read), P = R'R, into
+    the upper triangle of ``R`` (which may be ``P`` itself: each entry is read before it is
+    written). False when P is not positive definite."""
+    n = P.shape[0]
+    for j in range(n):
+        d = P[j, j]
+        for k in range(j):
+            d -= R[k, j] * R[k, j]
+        if not d > 0.0:
+            return False
+        d = math.sqrt(d)
+        R[j, j] = d
+        for i in range(j + 1, n):
+            s = P[j, i]
+            for k in range(j):
+                s -= R[k, j] * R[k, i]
+            R[j, i] = s / d
+    return True
+
+
+@_jit
 def _viol(j: int, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, A: np.ndarray,
           b: np.ndarray) -> float:
     """a_j x - b_j of constraint j (0 <= j < n: x_j >= lo_j; n <= j < 2n: x_j <= hi_j; then
@@ -165,19 +187,9 @@ def solve_dual_active_set(P: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.n
     vec = work[4 * n :]
     q, w, z, coef, r, a, g = vec[0], vec[1], vec[2], vec[3], vec[4], vec[5], vec[6]
     # Cholesky P = R'R (upper)
+    if not cholesky_upper(P, R):
+        return 0, 0, 0
     for j in range(n):
-        d = P[j, j]
-        for k in range(j):
-            d -= R[k, j] * R[k, j]
-        if not d > 0.0:
-            return 0, 0, 0
-        d = math.sqrt(d)
-        R[j, j] = d
-        for i in range(j + 1, n):
-            s = P[j, i]
-            for k in range(j):
-                s -= R[k, j] * R[k, i]
-            R[j, i] = s / d
         for i in range(j):
             R[j, i] = 0.0
     # unconstrained minimiser x = -P^-1 c

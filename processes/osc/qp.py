@@ -29,7 +29,7 @@ import piqp
 
 from runtime.params import spec
 
-from .activeset import solve_dual_active_set
+from .activeset import cholesky_upper, solve_dual_active_set
 from .model import CassieModel
 
 
@@ -470,19 +470,8 @@ def _cholesky_solve(A: np.ndarray, B: np.ndarray, nb: int) -> int:
     """Solve ``A X = B[:, :nb]`` in place (X into B) for symmetric positive definite A (its
     upper triangle is read and overwritten by the factor U, A = U'U). 0, or 1 if not PD."""
     n = A.shape[0]
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= A[k, j] * A[k, j]
-        if not d > 0.0:
-            return 1
-        d = math.sqrt(d)
-        A[j, j] = d
-        for i in range(j + 1, n):
-            s = A[j, i]
-            for k in range(j):
-                s -= A[k, j] * A[k, i]
-            A[j, i] = s / d
+    if not cholesky_upper(A, A):
+        return 1
     # U' Y = B, then U X = Y, a row of B (all nb columns) at a time
     for i in range(n):
         for k in range(i):

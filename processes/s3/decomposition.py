@@ -125,6 +125,29 @@ def _rotate_step(cost: Callable[[float, float], float], ax: float, ay: float, f:
     return None
 
 
+def _descend(cost: Callable[[float, float], float],
+             gradient: Callable[[float, float], tuple[float, float, float]], ax: float,
+             ay: float, alpha: float, beta: float, eps: float,
+             max_iters: int) -> tuple[float, float]:
+    """Algorithm 2's iterations from the unit normal (ax, ay): ``gradient`` gives grad f and
+    2 sum_active (w.a_perp)^2 (the Gauss-Newton part of the curvature along the circle)."""
+    f = cost(ax, ay)
+    for _ in range(max_iters):
+        gx, gy, curv_h = gradient(ax, ay)
+        theta = gx * ay - gy * ax              # (g - a<g,a>) x a == g x a in 2D
+        if abs(theta) <= eps:
+            break
+        # curvature of f along the circle at a: 2 sum_active (w.a_perp)^2 - a.g
+        curv = curv_h - (gx * ax + gy * ay)
+        moved = _rotate_step(cost, ax, ay, f, theta, curv, alpha, beta)
+        if moved is None:
+            break
+        ax, ay, f, converged = moved
+        if converged:
+            break
+    return ax, ay
+
+
 _PY_MAX_POINTS = 48      # above this many vertices the numpy variants are faster
 
 
@@ -149,29 +172,18 @@ def _make_cut_py(vl: list[list[float]], xi: float, yi: float, a0x: float, a0y: f
                 acc += m * m
         return acc
 
-    f = cost(ax, ay)
-    for _ in range(max_iters):
+    def gradient(cx: float, cy: float) -> tuple[float, float, float]:
         gx = gy = curv_h = 0.0
         for px, py in pts:
-            m = px * ax + py * ay
+            m = px * cx + py * cy
             if m > 0.0:
                 gx += m * px
                 gy += m * py
-                perp = -px * ay + py * ax
+                perp = -px * cy + py * cx
                 curv_h += perp * perp
-        gx, gy = 2.0 * gx, 2.0 * gy
-        theta = gx * ay - gy * ax              # (g - a<g,a>) x a == g x a in 2D
-        if abs(theta) <= eps:
-            break
-        # curvature of f along the circle at a: 2 sum_active (w.a_perp)^2 - a.g
-        curv = 2.0 * curv_h - (gx * ax + gy * ay)
-        moved = _rotate_step(cost, ax, ay, f, theta, curv, alpha, beta)
-        if moved is None:
-            break
-        ax, ay, f, converged = moved
-        if converged:
-            break
-    return ax, ay
+        return 2.0 * gx, 2.0 * gy, 2.0 * curv_h
+
+    return _descend(cost, gradient, ax, ay, alpha, beta, eps, max_iters)
 
 
 def _make_cut_np(v: np.ndarray, xi: float, yi: float, a0x: float, a0y: float, alpha: float,
@@ -190,23 +202,14 @@ def _make_cut_np(v: np.ndarray, xi: float, yi: float, a0x: float, a0y: float, al
         m = np.maximum(wx * cx + wy * cy, 0.0)
         return float(m @ m)
 
-    f = cost(ax, ay)
-    for _ in range(max_iters):
-        proj = wx * ax + wy * ay
+    def gradient(cx: float, cy: float) -> tuple[float, float, float]:
+        proj = wx * cx + wy * cy
         m = np.maximum(proj, 0.0)
-        gx, gy = 2.0 * float(m @ wx), 2.0 * float(m @ wy)
-        theta = gx * ay - gy * ax
-        if abs(theta) <= eps:
-            break
-        perp = -wx * ay + wy * ax
-        curv = 2.0 * float((perp * perp) @ (proj > 0.0)) - (gx * ax + gy * ay)
-        moved = _rotate_step(cost, ax, ay, f, theta, curv, alpha, beta)
-        if moved is None:
-            break
-        ax, ay, f, converged = moved
-        if converged:
-            break
-    return ax, ay
+        perp = -wx * cy + wy * cx
+        return (2.0 * float(m @ wx), 2.0 * float(m @ wy),
+                2.0 * float((perp * perp) @ (proj > 0.0)))
+
+    return _descend(cost, gradient, ax, ay, alpha, beta, eps, max_iters)
 
 
 # --- whittling (Algorithm 1) ------------------------------------------------------------------

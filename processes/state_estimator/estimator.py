@@ -550,14 +550,11 @@ class CassieEstimator:
         vb[1] = r01 * vx + r11 * vy + r21 * vz
         vb[2] = r02 * vx + r12 * vy + r22 * vz
         kin.update_momentum(vb, w)
-        (bx, by, bz), (ux, uy, uz), (lx, ly, lz) = (
-            kin.com.tolist(), kin.com_vel.tolist(), kin.angmom_com.tolist())
-        cx = q[0] + r00 * bx + r01 * by + r02 * bz
-        cy = q[1] + r10 * bx + r11 * by + r12 * bz
-        cz = q[2] + r20 * bx + r21 * by + r22 * bz
-        gx = r00 * ux + r01 * uy + r02 * uz
-        gy = r10 * ux + r11 * uy + r12 * uz
-        gz = r20 * ux + r21 * uy + r22 * uz
+        # the CoM, its velocity and the momentum about it, from the pelvis frame to the world
+        # (the reference path: numpy products, where the fused step writes out the sums)
+        cx, cy, cz = (q[0:3] + R @ kin.com).tolist()
+        gx, gy, gz = (R @ kin.com_vel).tolist()
+        lwx, lwy, _ = (R @ kin.angmom_com).tolist()
         com, cv = est.com, est.com_vel
         com[0], com[1], com[2] = cx, cy, cz
         cv[0], cv[1], cv[2] = gx, gy, gz
@@ -577,8 +574,8 @@ class CassieEstimator:
         # L_p = L_com + m (c - p) x v_com (angular momentum transfer), world axes
         raw = est.alip_raw
         raw[0], raw[1] = ex, ey
-        raw[2] = r00 * lx + r01 * ly + r02 * lz + m * (ey * gz - ez * gy)
-        raw[3] = r10 * lx + r11 * ly + r12 * lz + m * (ez * gx - ex * gz)
+        raw[2] = lwx + m * (ey * gz - ez * gy)
+        raw[3] = lwy + m * (ez * gx - ex * gz)
         dt = (pkt.utime - self._alip_utime) * 1e-6 if est.alip_stance == stance else 0.0
         self._alip_utime = pkt.utime
         est.alip_x[:] = self.alip.step(raw, stance, dt)

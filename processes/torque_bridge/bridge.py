@@ -162,19 +162,20 @@ class TorqueBridge:
         if ok is None:
             t = np.asarray(torque, dtype=float)
             if t.shape != (NUM_MOTORS,):
-                self.nan_rejects += 1
-                self.rejected_pending = True
-                self.last_reason = f"command has {t.size} torques, expected {NUM_MOTORS}"
-                return False
+                return self._reject(f"command has {t.size} torques, expected {NUM_MOTORS}")
             ok = _take_command(t, self.commanded, self.command)
         if not ok:
-            self.nan_rejects += 1
-            self.rejected_pending = True
-            self.last_reason = "command holds NaN or inf"
-            return False
+            return self._reject("command holds NaN or inf")
         self.command_utime = int(utime)
         self.rejected_pending = False
         return True
+
+    def _reject(self, reason: str) -> bool:
+        """Count a rejected command; the next step falls back (``SOURCE_REJECTED``)."""
+        self.nan_rejects += 1
+        self.rejected_pending = True
+        self.last_reason = reason
+        return False
 
     def step(self, now_utime: int,
              motor_vel: np.ndarray | Callable[[], np.ndarray],

@@ -58,35 +58,29 @@ class NumpyBridge:
         return True
 
     def step(self, now_utime: int, motor_vel: np.ndarray) -> np.ndarray:
-        p = self.params
-        cu = self.command_utime
-        age_us = None if cu is None else now_utime - cu
-        self.age_ms = float("inf") if age_us is None else age_us / 1000.0
-        fresh = age_us is not None and -self.watchdog_us < age_us < self.watchdog_us
-        if self.rejected_pending:
-            self._fallback(motor_vel)
-            self.source = SOURCE_REJECTED
-            self._tripped = True
-        elif fresh:
+        p, cu = self.params, self.command_utime
+        self.age_ms = float("inf") if cu is None else (now_utime - cu) / 1000.0
+        # which case: a rejected command pending, a fresh one, none yet, or a stale one
+        case = ("rejected" if self.rejected_pending
+                else "none" if cu is None
+                else "fresh" if abs(now_utime - cu) < self.watchdog_us else "stale")
+        if case == "fresh":
             self.torque[:] = self.command
-            self.source = SOURCE_COMMAND
-            self._tripped = False
-            self.last_reason = "ok"
-        elif cu is None:
+            self.source, self._tripped, self.last_reason = SOURCE_COMMAND, False, "ok"
+        elif case == "none":
             self.torque[:] = 0.0
             self.source = SOURCE_WATCHDOG_ZERO
         else:
-            if not self._tripped:
+            if case == "stale" and not self._tripped:
                 self.watchdog_trips += 1
                 self.last_reason = f"no fresh command for {p.watchdog_s * 1e3:.0f} ms"
             self._tripped = True
             self._fallback(motor_vel)
-            self.source = (SOURCE_WATCHDOG_ZERO if p.fallback == "zero"
-                           else SOURCE_WATCHDOG_DAMPING)
+            self.source = {"rejected": SOURCE_REJECTED}.get(
+                case, SOURCE_WATCHDOG_ZERO if p.fallback == "zero" else SOURCE_WATCHDOG_DAMPING)
         over = np.abs(self.torque) > self.limit
-        if over.any():
-            self.clamp_count += int(over.sum())
-            np.clip(self.torque, -self.limit, self.limit, out=self.torque)
+        self.clamp_count += int(over.sum())
+        self.torque[:] = np.where(over, np.sign(self.torque) * self.limit, self.torque)
         return self.torque
 
     def _fallback(self, motor_vel: np.ndarray) -> None:
