@@ -125,6 +125,7 @@ class MpfcNode(Node):
         self.last_status = "none"
         self.solves = 0
         self.failures = 0
+        self.halts = 0  # times it stopped because no foothold ahead was within a step
 
     # -- inputs --------------------------------------------------------------------------------
     def _read_inputs(self, inbox: Any) -> None:
@@ -190,6 +191,7 @@ class MpfcNode(Node):
                 self.stance_pos[:2], ahead):
             log.warning("MPFC at t=%.2f s, stance foot at (%.2f, %.2f): %s", t,
                         self.stance_pos[0], self.stance_pos[1], self._halt_text())
+            self.halts += self.halt.state == Halt.STOPPING
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",
@@ -286,6 +288,13 @@ class MpfcNode(Node):
 
     def status(self) -> str:
         return f"{self.solves} solves, {self.failures} kept the previous plan; {self.last_status}"
+
+    def counters(self) -> dict[str, float]:
+        """Solves, failed solves, and the stops for nothing reachable ahead (``halted``: 1
+        while stopping or stopped)."""
+        return {"solves": float(self.solves), "failures": float(self.failures),
+                "halts": float(self.halts),
+                "halted": float(self.halt.state == Halt.STOPPING)}
 
 
 def _static_footholds(spec: str) -> list[Foothold]:

@@ -8,6 +8,12 @@ the ALIP fields, the MPFC's input, are computed on those packets only, so the 2 
 within its 0.5 ms period)
 and ``contact`` (contact_t, one per valid packet).
 
+With ``params.truth_state`` (simulation only: the paper's runs with ground-truth state, Section
+VIII-A) the published pose and velocity are the simulator's own (input ``ground_truth``, the
+sim's GROUND_TRUTH of the same packet's ``utime``) instead of the filter's; contact, the ALIP
+filter and every counter stay the estimator's, and the filter runs as always. A robot process
+knows no simulator: the truth comes over the bus, as the ground-truth footholds do.
+
 A datagram that fails ``runtime.cassie_packets`` validation (size, version, kind, NaN/inf) or
 the estimator's range checks is rejected: counted in ``packets_rejected``, logged (rate-limited)
 and never passed on. Sequence gaps are counted by ``LinkCounter`` into ``packets_lost``.
@@ -24,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lcmtypes import contact_t, robot_state_t
+from lcmtypes import contact_t, ground_truth_t, robot_state_t
 from runtime.cassie_packets import (
     OUTPUT_SIZE,
     UTIME_AT,
@@ -33,6 +39,7 @@ from runtime.cassie_packets import (
     PacketError,
 )
 from runtime.config_types import ProcessConfig, Profile
+from runtime.errors import ConfigError
 from runtime.node import Context, Inbox, Node
 
 from .estimator import STATUS_PACKET_GAP, CassieEstimator, RejectedPacket
@@ -50,7 +57,7 @@ class StateEstimatorNode(Node):
     """UDP robot output in; robot state (2 kHz and 200 Hz) and contact out."""
 
     name = "state_estimator"
-    inputs = {"robot_output": bytes}
+    inputs = {"robot_output": bytes}  # and ground_truth with ``truth_state`` (__init__)
     outputs = {"state": robot_state_t, "network_state": robot_state_t, "contact": contact_t}
     trigger_role = "robot_output"
     trigger_policy = "each"
@@ -58,8 +65,14 @@ class StateEstimatorNode(Node):
     # integrated late, in order: lost packets would make the estimate drift); beyond it the
     # oldest are dropped and counted, so the lag stays bounded
 
-    def __init__(self, params: EstimatorParams | None = None, fused: bool = True) -> None:
+    def __init__(self, params: EstimatorParams | None = None, fused: bool = True,
+                 truth_state: bool = False) -> None:
         self.params = params or EstimatorParams()
+        #: publish the sim's true pose and velocity (module docstring)
+        self.truth_state = truth_state
+        self.truth_stale = 0  # states published with a truth older than their packet
+        if truth_state:
+            self.inputs = {**type(self).inputs, "ground_truth": ground_truth_t}
         self.fused = fused  # False: the modular Python estimator (the fused step's reference)
         self._network_every = self.params.network_every
         self._last_seq = -1
@@ -164,6 +177,8 @@ class StateEstimatorNode(Node):
         f = est.out_floats.tolist()  # q, v, motor torques, IMU specific force
         nq, nv = self._nq, self._nqv
         s.q, s.v, s.motor_torque, s.imu_accel = f[:nq], f[nq:nv], f[nv:-3], f[-3:]
+        if self.truth_state:
+            self._take_truth(inbox, s, utime)
         if alip_changed:  # the ALIP fields change only on the laptop's packets (and a reset)
             s.alip_stance = stance
             s.alip_x = est.est.alip_x.tolist()
@@ -187,15 +202,29 @@ class StateEstimatorNode(Node):
         c.force_estimate = est.est.force.tolist()
         ctx.publish("contact", c)
 
+    def _take_truth(self, inbox: Inbox, s: robot_state_t, utime: int) -> None:
+        """The sim's true q and v into ``s`` (``truth_state``): the newest GROUND_TRUTH, counted
+        in ``truth_stale`` when it is not of this packet's utime."""
+        gt = inbox.latest("ground_truth")
+        if gt is None or len(gt.q) != self._nq or len(gt.v) != self._nqv - self._nq:
+            self.truth_stale += 1
+            return
+        if gt.header.utime != utime:
+            self.truth_stale += 1
+        s.q, s.v = list(gt.q), list(gt.v)
+
     def counters(self) -> dict[str, float]:
         """Packets in, states out: a report checks a state for every packet of the sim."""
-        return {
+        out = {
             "packets_received": self.link.received,
             "packets_lost": self.link.lost,
             "packets_rejected": self.rejected,
             "states_published": self.published,
             "estimator_resets": self.estimator_resets,
         }
+        if self.truth_state:
+            out["truth_stale"] = self.truth_stale
+        return out
 
     def status(self) -> str:
         s = f"published {self.published} rejected {self.rejected} {self.link.summary()}"
@@ -206,7 +235,11 @@ class StateEstimatorNode(Node):
 
 @dataclass(frozen=True)
 class Params:
-    """No ``params:``: every setting of the estimator lives in its gains file."""
+    """The estimator's ``params:``; every setting of the filter lives in its gains file."""
+
+    #: publish the simulator's true pose and velocity (input ``ground_truth`` bound to the
+    #: sim's GROUND_TRUTH at every step): the paper's ground-truth-state runs, sim only
+    truth_state: bool = False
 
 
 #: the gains file (``gains:``, hw_config/gains/state_estimator.yaml), section by section
@@ -216,6 +249,11 @@ Gains = EstimatorParams
 def make_node(proc: ProcessConfig, profile: Profile, params: Params,
               gains: EstimatorParams) -> Node:
     """The estimator of ``gains`` (``runtime.builder.build_node`` reads and checks both)."""
-    node = StateEstimatorNode(gains)
+    if params.truth_state and "ground_truth" not in proc.inputs:
+        raise ConfigError(str(proc.source_file), f"processes.{proc.name}.params.truth_state",
+                          "true, but the process has no ground_truth input",
+                          allowed="false, or inputs: {ground_truth: ground_truth} with the "
+                                  "sim's output_rate_hz.ground_truth at its step rate")
+    node = StateEstimatorNode(gains, truth_state=params.truth_state)
     node.name = proc.name
     return node

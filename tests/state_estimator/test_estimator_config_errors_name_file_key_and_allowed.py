@@ -1,6 +1,6 @@
-"""The estimator built from a profile (``runtime.builder.build_node``): it takes no params,
-and a bad gains file (an unknown key, a value out of range, on_n not above off_n) is a
-ConfigError naming the file, the dotted key and what is allowed."""
+"""The estimator built from a profile (``runtime.builder.build_node``): its one param
+(``truth_state``) and a bad gains file (an unknown key, a value out of range, on_n not above
+off_n) are ConfigErrors naming the file, the dotted key and what is allowed."""
 
 from __future__ import annotations
 
@@ -17,10 +17,18 @@ def test_the_shipped_settings_build(tmp_path: Path) -> None:
     assert node.params.init.xy_m == (0.0, 0.0)
 
 
-def test_any_param_is_an_unknown_key_naming_the_profile(tmp_path: Path) -> None:
+def test_a_gains_key_as_a_param_is_an_unknown_key_naming_the_profile(tmp_path: Path) -> None:
     err = config_error(tmp_path, "state_estimator", params={"network_every": 5})
     assert str(err) == (f"{tmp_path / 'one.yaml'}: processes.state_estimator.params."
-                              "network_every: unknown key (allowed: none: it takes no keys)")
+                              "network_every: unknown key (allowed: truth_state)")
+
+
+def test_the_true_state_without_its_input_names_what_to_add(tmp_path: Path) -> None:
+    err = config_error(tmp_path, "state_estimator", params={"truth_state": True})
+    assert str(err) == (
+        f"{tmp_path / 'one.yaml'}: processes.state_estimator.params.truth_state: true, but "
+        "the process has no ground_truth input (allowed: false, or inputs: {ground_truth: "
+        "ground_truth} with the sim's output_rate_hz.ground_truth at its step rate)")
 
 
 @pytest.mark.parametrize(("change", "message"), [

@@ -58,6 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fixed-timing", action="store_true",
                     help="the MPFC's step-timing optimisation off: t_min = t_max = T_ss (the "
                          "paper's Fixed-T; default Opt-T)")
+    ap.add_argument("--true-state", action="store_true",
+                    help="the controllers on the sim's true pose and velocity instead of the "
+                         "estimator's (the paper's GT runs: ground-truth state and terrain)")
     ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
     ap.add_argument("--lateral-gain", type=float, default=LATERAL_GAIN, metavar="K",
                     help="the operator steers back onto the course's centre line at K m/s per "
@@ -106,14 +109,16 @@ def main(argv: list[str] | None = None) -> int:
             run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                            args.vx, args.launch, base,
                            args.log_dir / f"trial{i}" if args.log_dir else None, args.depth,
-                           args.dashboard, args.fixed_timing, args.lateral_gain)
+                           args.dashboard, args.fixed_timing, args.lateral_gain,
+                           args.true_state)
             for i in range(args.trials)
         ]
     else:
         trials = [
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                       args.vx, args.profile, depth=args.depth,
-                      fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain)
+                      fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
+                      true_state=args.true_state)
             for i in range(args.trials)
         ]
     for tr in trials:
@@ -186,7 +191,7 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                        v if name == "dmin" else args.dmin, args.perception, args.vx,
                        str(args.profile), v if name == "depth" else args.depth,
                        fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
-                       point=(f"{name}_m", v))
+                       true_state=args.true_state, point=(f"{name}_m", v))
              for v in grid for i in range(args.trials)]
     jobs = args.jobs or os.cpu_count() or 1
     print(f"sweep {args.name} {name} over {grid}: {len(specs)} trials, {jobs} at a time, "
@@ -195,6 +200,8 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     rows = summarise(result.trials)
     feet = "S3" if args.perception else "true"
     timing = "Fixed-T" if args.fixed_timing else "Opt-T"
+    if args.true_state:
+        timing += ", true state"
     png = write_summary(rows, result, out, f"{args.name}: {len(specs) // max(len(grid), 1)} "
                         f"trials per point, {feet} footholds, {timing}", jobs)
     print_table(f"sweep {args.name} over {name}", {

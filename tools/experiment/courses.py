@@ -56,10 +56,11 @@ def _fixed_timing_gains(mpfc_gains: Path, work: Path) -> Path:
 
 
 def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool, work: Path,
-                   mode: str | None = None, fixed_timing: bool = False
-                   ) -> tuple[Path, list[str]]:
+                   mode: str | None = None, fixed_timing: bool = False,
+                   true_state: bool = False) -> tuple[Path, list[str]]:
     """The experiment's profile: the base one on ``terrain``, perception joining or not, the
-    MPFC's step timing optimised (Opt-T) or fixed (Fixed-T)."""
+    MPFC's step timing optimised (Opt-T) or fixed (Fixed-T), the controllers on the
+    estimator's state or (``true_state``: the paper's GT runs) on the sim's true state."""
     base = load_profile(base_profile)
     launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
     if perception:
@@ -74,6 +75,11 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
     doc["launch"] = launch
     doc["overrides"] = {"sim": {"params": sim_params},
                         "mpfc": {"params": {"footholds": "channel"}}}
+    if true_state:
+        # the estimator publishes the sim's true pose and velocity of every step
+        doc["overrides"]["state_estimator"] = {"params": {"truth_state": True},
+                                               "inputs": {"ground_truth": "ground_truth"}}
+        doc["overrides"]["sim"]["output_rate_hz"] = {"ground_truth": 2000}
     if fixed_timing:
         gains = base.processes["mpfc"].gains_file
         assert gains is not None  # (the builder requires one)
@@ -85,7 +91,7 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
 
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
              work: Path, mode: str | None = None, depth: float | None = None,
-             fixed_timing: bool = False
+             fixed_timing: bool = False, true_state: bool = False
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float],
                         float | None]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
@@ -95,7 +101,7 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
 
     terrain = _terrain_file(name, dmin, seed, work, depth)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode,
-                                       fixed_timing)
+                                       fixed_timing, true_state)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
     # the foot that the controller aims within
     ter = terrain_mod.load_terrain(terrain)

@@ -48,6 +48,10 @@ class Trial:
     goal_x_m: float | None = None
     reached_goal_s: float = -1.0  # when the pelvis got GOAL_PAST_M past it (-1: never)
     crossed: bool = False  # reached the end (or, without one, the whole trial) without a fall
+    #: the MPFC's stops for no foothold ahead within a step, and whether it was stopping (or
+    #: standing) for that at the end: a fall then is one where nothing ahead was reachable
+    halts: int = 0
+    halted_at_end: bool = False
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops

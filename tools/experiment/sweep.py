@@ -39,15 +39,18 @@ class TrialSpec:
     depth: float | None = None
     fixed_timing: bool = False  # the MPFC's step timing fixed (the paper's Fixed-T)
     lateral_gain: float = 0.0  # the operator's steering back onto the centre line, 1/s
+    true_state: bool = False  # the controllers on the sim's true state (the paper's GT)
     #: the swept parameter's name and value (for the summary), e.g. ("dmin_m", 0.5)
     point: tuple[str, float] = ("", 0.0)
 
     def key(self) -> str:
         """What makes a trial the same trial when a sweep resumes."""
-        return json.dumps([self.name, self.duration_s, self.seed, self.dmin, self.perception,
-                           self.vx, self.profile, self.depth, self.fixed_timing,
-                           self.lateral_gain],
-                          sort_keys=True)
+        fields: list[Any] = [self.name, self.duration_s, self.seed, self.dmin,
+                             self.perception, self.vx, self.profile, self.depth,
+                             self.fixed_timing, self.lateral_gain]
+        if self.true_state:  # (so the keys of sweeps run before it stay the same)
+            fields.append("true_state")
+        return json.dumps(fields, sort_keys=True)
 
 
 @dataclass
@@ -64,7 +67,8 @@ def run_spec(spec: TrialSpec) -> dict[str, Any]:
     t0 = time.perf_counter()
     tr: Trial = run_trial(spec.name, spec.duration_s, spec.seed, spec.dmin, spec.perception,
                           spec.vx, Path(spec.profile), depth=spec.depth,
-                          fixed_timing=spec.fixed_timing, lateral_gain=spec.lateral_gain)
+                          fixed_timing=spec.fixed_timing, lateral_gain=spec.lateral_gain,
+                          true_state=spec.true_state)
     rec = {k: v for k, v in asdict(tr).items() if k not in ("timing", "cpu", "realtime")}
     rec.update(key=spec.key(), point=list(spec.point), worker_wall_s=time.perf_counter() - t0)
     return rec
@@ -134,6 +138,9 @@ def summarise(trials: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             "success_rate": sum(bool(r["success"]) for r in rs) / n,
             "crossed_rate": sum(bool(r["crossed"]) for r in rs) / n,
             "falls": sum(bool(r["fell"]) for r in rs),
+            # falls with the MPFC stopped for no foothold within a step ahead
+            "falls_halted": sum(bool(r["fell"]) and bool(r.get("halted_at_end")) for r in rs),
+            "halts": sum(int(r.get("halts", 0)) for r in rs),
             "footsteps_outside": sum(int(r["footsteps_outside"]) for r in rs),
             "mean_distance_m": sum(float(r["distance_m"]) for r in rs) / n,
             "mean_velocity_mps": sum(float(r["mean_velocity_mps"]) for r in rs) / n,

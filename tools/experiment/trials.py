@@ -38,6 +38,7 @@ def run_trial(
     depth: float | None = None,
     fixed_timing: bool = False,
     lateral_gain: float = LATERAL_GAIN,
+    true_state: bool = False,
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
     (or instrument) the harness's nodes before the run; ``depth`` is the stairs' tread depth
@@ -47,7 +48,7 @@ def run_trial(
         work = Path(tmp)
         _, profile, launch, footholds, ground, goal = _prepare(
             base_profile, name, dmin, seed, perception, work, depth=depth,
-            fixed_timing=fixed_timing)
+            fixed_timing=fixed_timing, true_state=true_state)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
@@ -77,6 +78,11 @@ def run_trial(
                 bar.update((nxt - t_us) / 1e6)
                 t_us = nxt
         trial.wall_s = time.perf_counter() - t0
+        for b in h.bindings:
+            if b.node.name == "mpfc":
+                c = b.node.counters()
+                trial.halts = int(c.get("halts", 0))
+                trial.halted_at_end = bool(c.get("halted", 0))
         h.close()
     return _verdict(trial, judge, launch)
 
@@ -95,6 +101,7 @@ def run_live_trial(
     dashboard: bool = False,
     fixed_timing: bool = False,
     lateral_gain: float = LATERAL_GAIN,
+    true_state: bool = False,
 ) -> Trial:
     """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
@@ -107,7 +114,8 @@ def run_live_trial(
         logs = log_dir if log_dir is not None else work / "logs"
         logs.mkdir(parents=True, exist_ok=True)
         prof_path, profile, launch, footholds, ground, goal = _prepare(
-            base_profile, name, dmin, seed, perception, work, mode, depth, fixed_timing)
+            base_profile, name, dmin, seed, perception, work, mode, depth, fixed_timing,
+            true_state)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
         judge = Judge(footholds, math.inf, ground, goal)
