@@ -34,7 +34,7 @@ from tools.experiment.operator import LATERAL_GAIN, LATERAL_MAX_MPS
 from tools.experiment.trials import run_live_trial, run_trial
 from tools.report import print_cpu, print_loops, print_realtime
 
-EXPERIMENTS = ("flat", "stairs", "beam", "stones")
+EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks")
 
 __all__ = ["EXPERIMENTS", "PERCEPTION_STAIRS_DEPTH_M", "Judge", "Trial", "_terrain_file",
            "main", "run_live_trial", "run_trial"]
@@ -61,6 +61,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--true-state", action="store_true",
                     help="the controllers on the sim's true pose and velocity instead of the "
                          "estimator's (the paper's GT runs: ground-truth state and terrain)")
+    ap.add_argument("--record-maps", type=Path, default=None, metavar="FILE.npz",
+                    help="with --perception, in the harness: keep every elevation map of the "
+                         "trial (and its mapping time) for `cassie bench segmenters`")
     ap.add_argument("--vx", type=float, default=0.375, help="commanded speed, m/s")
     ap.add_argument("--lateral-gain", type=float, default=LATERAL_GAIN, metavar="K",
                     help="the operator steers back onto the course's centre line at K m/s per "
@@ -102,6 +105,13 @@ def main(argv: list[str] | None = None) -> int:
         args.depth = PERCEPTION_STAIRS_DEPTH_M
         print(f"stairs with perception: {args.depth:.2f} m treads, as the paper's Fig. 11 "
               "(--depth to change)")
+    recorder = None
+    if args.record_maps is not None:
+        if not args.perception or args.launch or args.trials != 1:
+            ap.error("--record-maps records one harness trial with --perception")
+        from tools.experiment.maps import MapRecorder
+
+        recorder = MapRecorder()
     if args.launch:
         base = args.profile if args.profile != HW_CONFIG_DIR / "experiment.yaml" else (
             HW_CONFIG_DIR / "sim.yaml")
@@ -116,11 +126,14 @@ def main(argv: list[str] | None = None) -> int:
     else:
         trials = [
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
-                      args.vx, args.profile, depth=args.depth,
+                      args.vx, args.profile, setup=recorder, depth=args.depth,
                       fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
                       true_state=args.true_state)
             for i in range(args.trials)
         ]
+    if recorder is not None:
+        n = recorder.save(args.record_maps)
+        print(f"{n} elevation maps recorded in {args.record_maps}")
     for tr in trials:
         rows = {k: v for k, v in asdict(tr).items()
                 if k not in ("notes", "timing", "cpu", "realtime")}
