@@ -236,8 +236,8 @@ def _serve() -> int:
     os.dup2(2, 1)  # anything else printed goes to stderr
     try:
         (n,) = _LEN.unpack(_read_exact(rd, _LEN.size))
-        (terrain, impratio, solref), cfg = pickle.loads(_read_exact(rd, n))
-        cam = DepthCamera(build_model(terrain, impratio, solref), cfg)
+        model_args, cfg = pickle.loads(_read_exact(rd, n))
+        cam = DepthCamera(build_model(*model_args), cfg)
         nq = cam.m.nq
         wr.write(_LEN.pack(5) + b"ready")
         while True:

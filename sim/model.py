@@ -28,16 +28,26 @@ TERRAIN_RGBA = ((0.55, 0.55, 0.5, 1.0), (0.45, 0.5, 0.55, 1.0))
 
 HOLDER_BODY = "pelvis-holder"
 HOLDER_EQ = "pelvis-holder"
+#: the obstacle cubes' bodies are named CUBE_PREFIX + index (``build_model(cubes=...)``)
+CUBE_PREFIX = "obstacle-cube-"
+#: where the cubes wait until they are dropped: far outside the camera's range, on a plate
+CUBE_PARKING_XY = (-40.0, 40.0)
+CUBE_DENSITY_KG_M3 = 30.0  # foam, as the paper's tossed cubes (Section VIII-D-4)
 
 
 def build_model(
     terrain: Terrain | None = None,
     impratio: float = 10.0,
     holder_solref: tuple[float, float] = (0.01, 1.0),
+    cubes: int = 0,
+    cube_size_m: float = 0.15,
 ) -> mujoco.MjModel:
     """Compile Cassie with the terrain's boxes as static geoms (group 0, collide with feet),
     plus the start-up holder: a mocap body welded to the pelvis by a soft weld (inactive
-    until ``SimCore`` turns it on; ``holder_solref`` = time constant, damping ratio)."""
+    until ``SimCore`` turns it on; ``holder_solref`` = time constant, damping ratio); and
+    ``cubes`` free foam cubes of side ``cube_size_m`` parked on a plate far away until the
+    sim drops them (``SimCore``, ``DropsConfig``): their joints come after the robot's, so
+    the robot's qpos and qvel are the first entries still."""
     spec = load_spec()
     spec.option.impratio = impratio
     pelvis = spec.body("cassie-pelvis")
@@ -73,7 +83,52 @@ def build_model(
             g.condim = 3
             g.group = 0
             g.rgba = list(TERRAIN_RGBA[i % 2])
+    if cubes > 0:
+        _add_cubes(spec, cubes, cube_size_m,
+                   0.0 if terrain is None or terrain.ground_z is None else terrain.ground_z)
     return spec.compile()
+
+
+def robot_size(m: mujoco.MjModel) -> tuple[int, int]:
+    """(nq, nv) of the robot: the qpos and dofs before the first obstacle cube's joint (the
+    whole model's without cubes)."""
+    body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{CUBE_PREFIX}0")
+    if body < 0:
+        return int(m.nq), int(m.nv)
+    j = int(m.body_jntadr[body])
+    return int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+
+
+def cube_bodies(m: mujoco.MjModel) -> list[int]:
+    """The obstacle cubes' body ids, in order."""
+    out = []
+    while (b := mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{CUBE_PREFIX}{len(out)}")) >= 0:
+        out.append(b)
+    return out
+
+
+def _add_cubes(spec: mujoco.MjSpec, count: int, size: float, ground_z: float) -> None:
+    """The parking plate and ``count`` cubes resting on it in a row."""
+    px, py = CUBE_PARKING_XY
+    plate = spec.worldbody.add_geom()
+    plate.name = "obstacle-parking"
+    plate.type = mujoco.mjtGeom.mjGEOM_BOX
+    plate.size = [0.5 * count * size + 1.0, 1.0, 0.05]
+    plate.pos = [px, py, ground_z - 0.05]
+    plate.contype, plate.conaffinity = 0, 15  # as the terrain: static, everything lands on it
+    for i in range(count):
+        body = spec.worldbody.add_body()
+        body.name = f"{CUBE_PREFIX}{i}"
+        body.pos = [px - 0.5 * count * size + (i + 0.5) * 2 * size, py, ground_z + 0.5 * size]
+        body.add_freejoint()
+        g = body.add_geom()
+        g.type = mujoco.mjtGeom.mjGEOM_BOX
+        g.size = [0.5 * size] * 3
+        g.density = CUBE_DENSITY_KG_M3
+        # (bit 8 of its own: it lands on the ground, the terrain, other cubes and the robot)
+        g.contype, g.conaffinity, g.condim = 8, 15, 3
+        g.group = 1  # the depth camera sees groups 0 and 1
+        g.rgba = [0.9, 0.5, 0.1, 1.0]
 
 
 @dataclass(frozen=True)
@@ -175,6 +230,8 @@ def _standing_pose_cached(key: int, pelvis_height: float, foot_y: float) -> np.n
     d = mujoco.MjData(m)
     idx = CassieIndices.of(m)
     q0 = m.key_qpos[0].copy() if m.nkey else d.qpos.copy()
+    nq_robot, nv_robot = robot_size(m)
+    q0[nq_robot:] = m.qpos0[nq_robot:]  # obstacle cubes, if any: parked
     q0[0:3] = [0.0, 0.0, pelvis_height]
     q0[3:7] = [1.0, 0.0, 0.0, 0.0]
     springs = [m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)]
@@ -182,7 +239,7 @@ def _standing_pose_cached(key: int, pelvis_height: float, foot_y: float) -> np.n
     q0[springs] = 0.0
     spring_dofs = {int(m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)])
                    for n in SPRING_JOINTS}
-    free = np.array([i for i in range(6, m.nv) if i not in spring_dofs])
+    free = np.array([i for i in range(6, nv_robot) if i not in spring_dofs])
     yaw_dofs = idx.motor_dof[[1, 6]]
     radius = m.geom_size[list(idx.foot_geoms), 0]
     dq = np.zeros(m.nv)

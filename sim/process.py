@@ -48,6 +48,7 @@ from sim.camera import (
     ProcessDepthRenderer,
 )
 from sim.target_pc import (
+    DropsConfig,
     HolderConfig,
     Mode,
     PushConfig,
@@ -221,6 +222,8 @@ class Params:
     publish_footholds: bool = False
     #: an external force on the pelvis (overrides the gains file's push)
     push: PushConfig | None = None
+    #: foam cubes dropped in front of the robot (moving obstacles, Table IV)
+    drops: DropsConfig | None = None
     #: overrides the gains file's holder.release_on; manual: only the packets' release flag,
     #: which the torque bridge sets with its params.release_after_s
     holder_release: ReleaseOn | None = None
@@ -315,8 +318,11 @@ class SimNode(Node):
         renderer = None
         if self.render_mode == "process":  # first, so the child boots while this one does
             sim = settings.sim
+            drops = sim.drops
             model_args = (settings.terrain, sim.impratio,
-                          (sim.holder.timeconst_s, sim.holder.dampratio))
+                          (sim.holder.timeconst_s, sim.holder.dampratio),
+                          0 if drops is None else len(drops.after_release_s),
+                          0.15 if drops is None else drops.size_m)
             renderer = ProcessDepthRenderer(model_args, settings.camera)
         self.core = make_core(settings.terrain, settings.sim)
         self.tpc = TargetPC(self.core, mode, settings.steps_per_command, link_token())
@@ -339,8 +345,8 @@ class SimNode(Node):
         self._walked_m = 0.0
         self._pelvis_z = 0.0
         self._gt = ground_truth_t()
-        self._gt.num_positions = self.core.m.nq
-        self._gt.num_velocities = self.core.m.nv
+        self._gt.num_positions = self.core.nq_robot
+        self._gt.num_velocities = self.core.nv_robot
         self._camera: DepthCamera | None = None
         self.renderer: AsyncDepthRenderer | ProcessDepthRenderer | None = None
         self._next_depth_us = 0
@@ -476,8 +482,8 @@ class SimNode(Node):
         core = self.core
         msg = self._gt
         msg.header.utime = core.utime
-        msg.q = core.d.qpos.tolist()
-        msg.v = core.d.qvel.tolist()
+        msg.q = core.d.qpos[:core.nq_robot].tolist()  # the robot's (not the cubes')
+        msg.v = core.d.qvel[:core.nv_robot].tolist()
         com, vel = core.com_and_velocity()
         msg.com = com.tolist()
         msg.com_vel = vel.tolist()
@@ -582,6 +588,8 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: SimG
         settings = replace(settings, camera_render=params.camera_render)
     if params.push is not None:  # a push set in the profile (hw_config/push.yaml) wins
         settings = replace(settings, sim=replace(settings.sim, push=params.push))
+    if params.drops is not None:
+        settings = replace(settings, sim=replace(settings.sim, drops=params.drops))
     if params.holder_release is not None:
         settings = replace(settings, sim=replace(
             settings.sim, holder=replace(settings.sim.holder, release_on=params.holder_release)))

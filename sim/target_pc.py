@@ -20,6 +20,7 @@ Python around ``mj_step1``/``mj_step2``.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Literal, get_args
@@ -44,7 +45,7 @@ from runtime.cassie_packets import (
 )
 from runtime.pairing import DEFAULT_TOKEN, token_bytes
 from runtime.params import spec
-from sim.model import CassieIndices, build_model, standing_pose
+from sim.model import CassieIndices, build_model, cube_bodies, robot_size, standing_pose
 from sim.terrain import Terrain
 
 log = logging.getLogger(__name__)
@@ -80,6 +81,22 @@ class PushConfig:
 
 
 @dataclass(frozen=True)
+class DropsConfig:
+    """Foam cubes dropped in front of the robot (the paper's moving obstacles, Section VIII-D-4
+    and Table IV): the i-th at ``after_release_s[i]`` of sim time after the holder lets go,
+    ``ahead_m`` in front of the pelvis along its heading and ``side_m[i % len]`` to its left,
+    its bottom ``height_m`` above the lower foot, at rest, turned about z by a seeded angle.
+    The cubes wait parked far away until then (``sim.model.build_model(cubes=...)``)."""
+
+    after_release_s: tuple[float, ...] = spec(lo=0.0, unit="s")  # (required: no default)
+    ahead_m: float = spec(0.9, lo=0.0, hi=5.0, unit="m")
+    side_m: tuple[float, ...] = spec((0.0,), lo=-2.0, hi=2.0, unit="m")
+    height_m: float = spec(0.6, lo=0.0, hi=3.0, unit="m")
+    size_m: float = spec(0.15, lo=0.02, hi=1.0, unit="m")
+    seed: int = spec(0, lo=0)
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """Physics and start-up settings of the target PC."""
 
@@ -89,6 +106,7 @@ class SimConfig:
     foot_y: float = 0.135
     holder: HolderConfig = field(default_factory=HolderConfig)
     push: PushConfig | None = None
+    drops: DropsConfig | None = None
 
 
 class SimCore:
@@ -100,6 +118,14 @@ class SimCore:
         self.cfg = config or SimConfig()
         self.d = mujoco.MjData(model)
         self.idx = CassieIndices.of(model)
+        #: the robot's part of qpos and qvel (the model may hold obstacle cubes after it)
+        self.nq_robot, self.nv_robot = robot_size(model)
+        self._cubes = cube_bodies(model)
+        drops = self.cfg.drops
+        if drops is not None and len(drops.after_release_s) > len(self._cubes):
+            raise ValueError(f"{len(drops.after_release_s)} drops but the model has "
+                             f"{len(self._cubes)} cubes: build it with "
+                             "build_model(cubes=len(after_release_s))")
         self.dt = float(model.opt.timestep)
         self.q_start = standing_pose(model, self.cfg.pelvis_height, start_z, self.cfg.foot_y)
         #: newest command, N m at the joint (set it with ``command``: the controls follow it)
@@ -136,6 +162,8 @@ class SimCore:
         self.release_time: float | None = None if self.holder_engaged else 0.0
         self._push_window: tuple[float, float] | None = None
         self.pushing = False
+        #: per dropped cube: (sim time of the drop, world x, y of where it was let go)
+        self.drops_done: list[tuple[float, float, float]] = []
         self.commands = 0
         self.steps = 0
         self.torque_zeroed = True  # the last step applied zeros because of the watchdog
@@ -188,6 +216,10 @@ class SimCore:
         push = self.cfg.push
         if push is not None and self.release_time is not None:
             self._apply_push(push)
+        drops = self.cfg.drops
+        if (drops is not None and self.release_time is not None
+                and len(self.drops_done) < len(drops.after_release_s)):
+            self._apply_drops(drops)
         for _ in range(n):
             last = self.last_command_time  # the watchdog (``watchdog_tripped``), inline
             zeroed = last is None or d.time - last >= self._watchdog_after_s
@@ -230,6 +262,40 @@ class SimCore:
                 log.info("pushing the pelvis with %s N for %.3f s at t=%.3f s", push.force_n,
                          push.duration_s, self.d.time)
             self.pushing = on
+
+    def _apply_drops(self, drops: DropsConfig) -> None:
+        """Let the next cube go once its time after the release has come (per step call)."""
+        i = len(self.drops_done)
+        if self.d.time - (self.release_time or 0.0) < drops.after_release_s[i]:
+            return
+        d, m = self.d, self.m
+        w, x, y, z = d.qpos[3:7]
+        yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        c, s = math.cos(yaw), math.sin(yaw)
+        side = drops.side_m[i % len(drops.side_m)]
+        px = float(d.qpos[0]) + c * drops.ahead_m - s * side
+        py = float(d.qpos[1]) + s * drops.ahead_m + c * side
+        radius = m.geom_size[list(self.idx.foot_geoms), 0]
+        ground = min(float(d.geom_xpos[g, 2]) for g in self.idx.foot_geoms) - float(radius[0])
+        turn = np.random.default_rng((drops.seed, i)).uniform(-math.pi, math.pi)
+        j = int(m.body_jntadr[self._cubes[i]])
+        qa, va = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+        d.qpos[qa:qa + 7] = (px, py, ground + drops.height_m + 0.5 * drops.size_m,
+                             math.cos(turn / 2), 0.0, 0.0, math.sin(turn / 2))
+        d.qvel[va:va + 6] = 0.0
+        self._prepared = False  # the state changed after mj_step1
+        self.drops_done.append((float(d.time), px, py))
+        log.info("dropped cube %d at (%.2f, %.2f) at t=%.3f s", i, px, py, d.time)
+
+    def cube_states(self) -> list[tuple[np.ndarray, float]]:
+        """Each dropped cube's world position and speed (m/s), in drop order."""
+        out = []
+        for i in range(len(self.drops_done)):
+            j = int(self.m.body_jntadr[self._cubes[i]])
+            qa, va = int(self.m.jnt_qposadr[j]), int(self.m.jnt_dofadr[j])
+            out.append((self.d.qpos[qa:qa + 3].copy(),
+                        float(np.linalg.norm(self.d.qvel[va:va + 3]))))
+        return out
 
     # -- outputs ---------------------------------------------------------------------------
     def fill_output(self, pkt: OutputPacket, status: int, seq: int, ack: int,
@@ -563,5 +629,8 @@ def make_core(terrain: Terrain | None = None, config: SimConfig | None = None) -
     """Convenience: build the model for ``terrain`` and a core standing on its start surface."""
     cfg = config or SimConfig()
     h = cfg.holder
-    m = build_model(terrain, impratio=cfg.impratio, holder_solref=(h.timeconst_s, h.dampratio))
+    drops = cfg.drops
+    m = build_model(terrain, impratio=cfg.impratio, holder_solref=(h.timeconst_s, h.dampratio),
+                    cubes=0 if drops is None else len(drops.after_release_s),
+                    cube_size_m=0.15 if drops is None else drops.size_m)
     return SimCore(m, cfg, start_z=terrain.start_z if terrain is not None else 0.0)

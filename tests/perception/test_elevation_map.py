@@ -86,6 +86,28 @@ def test_outlier_is_not_fused_and_inflates_the_variance() -> None:
     assert 50 < frames < 200                         # after ~ (1e-3 / 1e-5) rejected frames
 
 
+def test_an_obstacle_on_known_ground_is_in_the_map_one_frame_later() -> None:
+    """With ``obstacle_variance_m2`` a rejected measurement above a cell opens the cell up:
+    a cube dropped on mapped ground is in the map at the second frame that sees it; a point
+    below the cell (seen past an edge) does not open it; and one lone outlier above leaves
+    the ground in place, since the next measurement is the ground's."""
+    params = ElevationMapParams(length_m=1.0, resolution_m=0.05, obstacle_variance_m2=0.01)
+    m = ElevationMap(params)
+    for _ in range(20):
+        m.integrate_points(_cell_point(m, 2, 2, 0.0)[None], 1e-5)
+        m.integrate_points(_cell_point(m, 4, 4, 0.0)[None], 1e-5)
+    m.integrate_points(_cell_point(m, 2, 2, 0.15)[None], 1e-5)   # the cube, first frame
+    assert m.elevation[2, 2] == pytest.approx(0.0, abs=1e-6)
+    m.integrate_points(_cell_point(m, 2, 2, 0.15)[None], 1e-5)   # second frame
+    assert m.elevation[2, 2] == pytest.approx(0.15, abs=1e-3)
+    v = m.variance[4, 4]
+    m.integrate_points(_cell_point(m, 4, 4, -0.2)[None], 1e-5)   # below: no opening up
+    assert m.variance[4, 4] < v + 1e-5
+    m.integrate_points(_cell_point(m, 4, 4, 0.3)[None], 1e-5)    # a lone outlier above
+    m.integrate_points(_cell_point(m, 4, 4, 0.0)[None], 1e-5)    # ... then the ground again
+    assert m.elevation[4, 4] == pytest.approx(0.0, abs=1e-3)
+
+
 def test_drift_correction_matches_the_map_to_the_stance_foot_with_a_4x4_median() -> None:
     m = ElevationMap(PARAMS)
     x, y = m.cell_centers()

@@ -34,7 +34,7 @@ from tools.experiment.operator import LATERAL_GAIN, LATERAL_MAX_MPS
 from tools.experiment.trials import run_live_trial, run_trial
 from tools.report import print_cpu, print_loops, print_realtime
 
-EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks")
+EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks", "cubes")
 
 __all__ = ["EXPERIMENTS", "PERCEPTION_STAIRS_DEPTH_M", "Judge", "Trial", "_terrain_file",
            "main", "run_live_trial", "run_trial"]
@@ -90,7 +90,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="--sweep: its folder")
     ap.add_argument("--jobs", type=int, default=None,
                     help="--sweep: trials at once (default: one per core)")
+    ap.add_argument("--hysteresis", default=None, metavar="K[,K...]",
+                    help="cubes: S3's k_hyst of each trial (default 0,0.1,...,0.6: Table IV)")
+    ap.add_argument("--stand", action="store_true",
+                    help="cubes: the robot stands (the radio's stand switch) instead of walking")
+    ap.add_argument("--cubes", type=int, default=3, help="cubes: cubes dropped per trial")
+    ap.add_argument("--obstacle-variance", type=float, default=None, metavar="M2",
+                    help="cubes: the elevation map's obstacle_variance_m2 (default: its gains "
+                         "file's; 0: the map of Fankhauser et al. without it)")
     args = ap.parse_args(argv)
+    if args.name == "cubes":
+        return _cubes(ap, args)
     if args.sweep is not None:
         return _sweep(ap, args)
     if args.dmin is not None and args.name != "stones":
@@ -181,6 +191,51 @@ def main(argv: list[str] | None = None) -> int:
             figures[f"{pre}mean_velocity_mps"] = tr.mean_velocity_mps
     print(f"\n{ok}/{len(trials)} trials succeeded")
     write_json(args.json, f"experiment_{args.name}", figures)
+    return 0
+
+
+def _cubes_job(job: tuple[float, bool, int, float | None]) -> dict[str, Any]:
+    from tools.experiment.obstacles import run_cubes_trial, trial_record
+
+    k, stand, cubes, ov = job
+    return trial_record(run_cubes_trial(k, stand, cubes, obstacle_variance=ov))
+
+
+def _cubes(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """``cubes``: Table IV, one harness trial per k_hyst, in parallel over the cores."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tools.experiment.obstacles import HYSTERESIS
+
+    try:
+        ks = ([float(x) for x in args.hysteresis.split(",") if x.strip()]
+              if args.hysteresis else list(HYSTERESIS))
+    except ValueError:
+        ap.error(f"--hysteresis {args.hysteresis!r}: want numbers, e.g. 0,0.3,0.6")
+    if not all(0.0 <= k <= 1.0 for k in ks) or not 1 <= args.cubes <= 3:
+        ap.error("--hysteresis values in [0, 1], --cubes 1 to 3")
+    jobs = args.jobs or os.cpu_count() or 1
+    mode = "standing" if args.stand else "walking"
+    print(f"cubes: {len(ks)} trials ({mode}, {args.cubes} cubes each), {jobs} at a time")
+    with ProcessPoolExecutor(jobs) as pool:
+        recs = list(pool.map(_cubes_job, [(k, args.stand, args.cubes, args.obstacle_variance)
+                                          for k in ks]))
+    rows = {}
+    figures: dict[str, Any] = {"mode": mode, "obstacle_variance_m2": args.obstacle_variance}
+    for r in recs:
+        seen = sum(c["seen"] for c in r["cubes"])
+        rows[f"k_hyst {r['k_hyst']:g}"] = (
+            f"{r['segmented']}/{len(r['cubes'])} segmented out ({seen} seen before the drop)"
+            + (", the robot fell" if r["fell"] else ""))
+        key = f"k_hyst_{r['k_hyst']:g}".replace(".", "p")
+        figures[f"{key}_segmented_count"] = r["segmented"]
+        figures[f"{key}_dropped_count"] = len(r["cubes"])
+        figures[f"{key}_seen_count"] = seen
+        figures[f"{key}_fell"] = r["fell"]
+    print_table(f"Table IV: cubes segmented out, {mode}", rows)
+    if args.json:
+        figures["trials"] = recs
+    write_json(args.json, f"experiment_cubes_{mode}", figures)
     return 0
 
 

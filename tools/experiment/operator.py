@@ -24,16 +24,19 @@ class Operator(Node):
     inputs = {"ground_truth": ground_truth_t}
     outputs = {"command": command_t}
 
-    def __init__(self, vx: float, lateral_gain: float = LATERAL_GAIN) -> None:
+    def __init__(self, vx: float, lateral_gain: float = LATERAL_GAIN,
+                 stand: bool = False) -> None:
         self.vx = vx
         self.lateral_gain = lateral_gain
+        self.stand = stand  # the radio's stand switch (command_t.mode 1)
         self.period_s = 0.05  # 20 Hz, as a radio sends
 
     def command(self, utime: int, gt: Any | None) -> command_t:
         """The radio's message: walk at ``vx``, turning back to heading 0."""
         cmd = command_t()
         cmd.header.utime = utime
-        cmd.vx = self.vx
+        cmd.vx = 0.0 if self.stand else self.vx
+        cmd.mode = 1 if self.stand else 0
         if gt is not None:
             w, x, y, z = gt.q[3:7]
             yaw = float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
