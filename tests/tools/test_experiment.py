@@ -79,7 +79,7 @@ def test_stairs_depth_writes_a_terrain_with_that_tread_depth(tmp_path) -> None:
     from sim import terrain as terrain_mod
     from tools.experiment import _terrain_file
 
-    ter = terrain_mod.load_terrain(_terrain_file("stairs", None, 0, tmp_path, depth=0.40))
+    ter = terrain_mod.load_terrain(_terrain_file("stairs", None, 0, tmp_path, size=0.40))
     assert ter.params["depth"] == pytest.approx(0.40)
     tops = sorted(b.top_z for b in ter.boxes)
     assert tops[0] == pytest.approx(0.15)
@@ -89,7 +89,7 @@ def test_stairs_depth_writes_a_terrain_with_that_tread_depth(tmp_path) -> None:
         experiment_main(["flat", "--depth", "0.4"])
 
 
-def test_stairs_with_perception_default_to_the_papers_40_cm_treads(monkeypatch, capsys):
+def test_stairs_and_beam_with_perception_default_to_the_papers_sizes(monkeypatch, capsys):
     import tools.experiment as ex
 
     seen = {}
@@ -97,8 +97,8 @@ def test_stairs_with_perception_default_to_the_papers_40_cm_treads(monkeypatch, 
     class Stop(Exception):
         pass
 
-    def fake_run_trial(*args, depth=None, **kw):
-        seen["depth"] = depth
+    def fake_run_trial(*args, size=None, **kw):
+        seen["depth"] = size
         raise Stop
 
     monkeypatch.setattr(ex, "run_trial", fake_run_trial)
@@ -112,6 +112,12 @@ def test_stairs_with_perception_default_to_the_papers_40_cm_treads(monkeypatch, 
     with pytest.raises(Stop):
         ex.main(["stairs", "--perception", "--depth", "0.5"])
     assert seen["depth"] == 0.5
+    with pytest.raises(Stop):
+        ex.main(["beam", "--perception"])  # and the beam: 35 cm
+    assert seen["depth"] == ex.PERCEPTION_BEAM_WIDTH_M == 0.35
+    with pytest.raises(Stop):
+        ex.main(["beam", "--width", "0.3"])
+    assert seen["depth"] == 0.3
 
 
 def test_fixed_timing_pins_the_stance_time_to_its_nominal_in_the_variant_that_runs(

@@ -28,7 +28,11 @@ import numpy as np
 
 from runtime.config import HW_CONFIG_DIR
 from tools.benchmarks.common import print_table, write_json
-from tools.experiment.courses import PERCEPTION_STAIRS_DEPTH_M, _terrain_file
+from tools.experiment.courses import (
+    PERCEPTION_BEAM_WIDTH_M,
+    PERCEPTION_STAIRS_DEPTH_M,
+    _terrain_file,
+)
 from tools.experiment.judge import Judge, Trial
 from tools.experiment.operator import LATERAL_GAIN, LATERAL_MAX_MPS
 from tools.experiment.trials import run_live_trial, run_trial
@@ -36,8 +40,8 @@ from tools.report import print_cpu, print_loops, print_realtime
 
 EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks", "cubes")
 
-__all__ = ["EXPERIMENTS", "PERCEPTION_STAIRS_DEPTH_M", "Judge", "Trial", "_terrain_file",
-           "main", "run_live_trial", "run_trial"]
+__all__ = ["EXPERIMENTS", "PERCEPTION_BEAM_WIDTH_M", "PERCEPTION_STAIRS_DEPTH_M", "Judge",
+           "Trial", "_terrain_file", "main", "run_live_trial", "run_trial"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,6 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--depth", type=float, default=None,
                     help="stairs: tread depth, m (default 0.27 with true footholds and 0.40 "
                     "with --perception: the paper's Fig. 11, top and bottom)")
+    ap.add_argument("--width", type=float, default=None,
+                    help="beam: its width, m (default 0.23 with true footholds and 0.35 with "
+                    "--perception: the paper's Fig. 11, top and bottom)")
     ap.add_argument("--perception", action="store_true", help="S3 footholds, not ground truth")
     ap.add_argument("--fixed-timing", action="store_true",
                     help="the MPFC's step-timing optimisation off: t_min = t_max = T_ss (the "
@@ -84,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                          "report's CPU table)")
     ap.add_argument("--sweep", default=None, metavar="dmin=LO:HI:STEP",
                     help="a sweep: every value of the parameter (stones: dmin; stairs: depth; "
+                         "beam: width; "
                          "A:B:STEP or A,B,C) times --trials seeds, as jobs over the cores; "
                          "resumable (finished trials are kept in OUT/trials.jsonl); writes "
                          "OUT/summary.json and OUT/summary.png (tools/experiment/sweep.py)")
@@ -107,6 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--dmin is for the stones experiment")
     if args.depth is not None and (args.name != "stairs" or not 0.1 <= args.depth <= 2.0):
         ap.error("--depth is for the stairs experiment, 0.1 to 2.0 m")
+    if args.width is not None and (args.name != "beam" or not 0.05 <= args.width <= 2.0):
+        ap.error("--width is for the beam experiment, 0.05 to 2.0 m")
     if args.duration <= 0 or args.trials < 1:
         ap.error("--duration must be > 0 and --trials >= 1")
     if args.name == "stairs" and args.perception and args.depth is None:
@@ -115,6 +125,11 @@ def main(argv: list[str] | None = None) -> int:
         args.depth = PERCEPTION_STAIRS_DEPTH_M
         print(f"stairs with perception: {args.depth:.2f} m treads, as the paper's Fig. 11 "
               "(--depth to change)")
+    if args.name == "beam" and args.perception and args.width is None:
+        args.width = PERCEPTION_BEAM_WIDTH_M  # (as the stairs: the paper's Fig. 11, bottom)
+        print(f"beam with perception: {args.width:.2f} m wide, as the paper's Fig. 11 "
+              "(--width to change)")
+    size = args.depth if args.name == "stairs" else args.width
     recorder = None
     if args.record_maps is not None:
         if not args.perception or args.launch or args.trials != 1:
@@ -128,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
         trials = [
             run_live_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                            args.vx, args.launch, base,
-                           args.log_dir / f"trial{i}" if args.log_dir else None, args.depth,
+                           args.log_dir / f"trial{i}" if args.log_dir else None, size,
                            args.dashboard, args.fixed_timing, args.lateral_gain,
                            args.true_state)
             for i in range(args.trials)
@@ -136,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         trials = [
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
-                      args.vx, args.profile, setup=recorder, depth=args.depth,
+                      args.vx, args.profile, setup=recorder, size=size,
                       fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
                       true_state=args.true_state)
             for i in range(args.trials)
@@ -172,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
         figures["dmin_m"] = args.dmin
     if args.depth is not None:
         figures["stair_depth_m"] = args.depth
+    if args.width is not None:
+        figures["beam_width_m"] = args.width
     if args.launch:
         figures["mode"] = args.launch
         figures["description"] = f"{args.name} with cassie launch in {args.launch} mode"
@@ -244,7 +261,7 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     from tools.experiment.sweep import TrialSpec, frange, run_sweep, summarise, write_summary
 
     name, _, values = args.sweep.partition("=")
-    allowed = {"stones": "dmin", "stairs": "depth"}.get(args.name)
+    allowed = {"stones": "dmin", "stairs": "depth", "beam": "width"}.get(args.name)
     if name != allowed:
         ap.error(f"--sweep for {args.name}: " + (f"{allowed}=LO:HI:STEP" if allowed
                                                  else "nothing to sweep"))
@@ -257,7 +274,8 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     out = args.out or Path(f"sweep_{args.name}_{name}")
     specs = [TrialSpec(args.name, args.duration, args.seed + i,
                        v if name == "dmin" else args.dmin, args.perception, args.vx,
-                       str(args.profile), v if name == "depth" else args.depth,
+                       str(args.profile),
+                       v if name in ("depth", "width") else (args.depth or args.width),
                        fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
                        true_state=args.true_state, point=(f"{name}_m", v))
              for v in grid for i in range(args.trials)]

@@ -1,5 +1,6 @@
-"""A trial's course: its terrain file (the paper's stairs at a tread depth, random stepping
-stones of a d_min and a seed) and the experiment profile that runs the stack on it."""
+"""A trial's course: its terrain file (the paper's stairs at a tread depth, its beam at a
+width, random stepping stones of a d_min and a seed) and the experiment profile that runs the
+stack on it."""
 
 from __future__ import annotations
 
@@ -14,16 +15,23 @@ from runtime.config_types import Profile
 
 #: tread depth of ``cassie experiment stairs --perception`` (the paper's Fig. 11, bottom)
 PERCEPTION_STAIRS_DEPTH_M = 0.40
+#: ... and the beam's width with perception (the same figure)
+PERCEPTION_BEAM_WIDTH_M = 0.35
+
+
+#: the terrain parameter a course's ``size`` sets (Fig. 11: the stairs' tread depth, the
+#: beam's width)
+SIZE_PARAM = {"stairs": "depth", "beam": "width"}
 
 
 def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
-                  depth: float | None = None) -> str:
-    if name == "stairs" and depth is not None:
-        # hw_config/terrains/stairs.yaml with another tread depth (Fig. 11: 27 cm with ground
-        # truth, 40 cm with perception)
-        doc = safe_load((HW_CONFIG_DIR / "terrains" / "stairs.yaml").read_text())
-        doc["params"]["depth"] = float(depth)
-        path = work / "stairs.yaml"
+                  size: float | None = None) -> str:
+    if name in SIZE_PARAM and size is not None:
+        # hw_config/terrains/NAME.yaml with another tread depth or beam width (Fig. 11: 27 cm
+        # treads and a 23 cm beam with ground truth, 40 cm and 35 cm with perception)
+        doc = safe_load((HW_CONFIG_DIR / "terrains" / f"{name}.yaml").read_text())
+        doc["params"][SIZE_PARAM[name]] = float(size)
+        path = work / f"{name}.yaml"
         path.write_text(yaml.safe_dump(doc, sort_keys=False))
         return str(path)
     if name == "stones":
@@ -90,7 +98,7 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
 
 
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
-             work: Path, mode: str | None = None, depth: float | None = None,
+             work: Path, mode: str | None = None, size: float | None = None,
              fixed_timing: bool = False, true_state: bool = False
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float],
                         float | None]:
@@ -99,7 +107,7 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
     end: the near edge in x of its last surface, None without one)."""
     from sim import terrain as terrain_mod
 
-    terrain = _terrain_file(name, dmin, seed, work, depth)
+    terrain = _terrain_file(name, dmin, seed, work, size)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode,
                                        fixed_timing, true_state)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for

@@ -36,7 +36,7 @@ class TrialSpec:
     perception: bool
     vx: float
     profile: str
-    depth: float | None = None
+    size: float | None = None  # the stairs' tread depth or the beam's width (courses)
     fixed_timing: bool = False  # the MPFC's step timing fixed (the paper's Fixed-T)
     lateral_gain: float = 0.0  # the operator's steering back onto the centre line, 1/s
     true_state: bool = False  # the controllers on the sim's true state (the paper's GT)
@@ -46,7 +46,7 @@ class TrialSpec:
     def key(self) -> str:
         """What makes a trial the same trial when a sweep resumes."""
         fields: list[Any] = [self.name, self.duration_s, self.seed, self.dmin,
-                             self.perception, self.vx, self.profile, self.depth,
+                             self.perception, self.vx, self.profile, self.size,
                              self.fixed_timing, self.lateral_gain]
         if self.true_state:  # (so the keys of sweeps run before it stay the same)
             fields.append("true_state")
@@ -66,7 +66,7 @@ def run_spec(spec: TrialSpec) -> dict[str, Any]:
 
     t0 = time.perf_counter()
     tr: Trial = run_trial(spec.name, spec.duration_s, spec.seed, spec.dmin, spec.perception,
-                          spec.vx, Path(spec.profile), depth=spec.depth,
+                          spec.vx, Path(spec.profile), size=spec.size,
                           fixed_timing=spec.fixed_timing, lateral_gain=spec.lateral_gain,
                           true_state=spec.true_state)
     rec = {k: v for k, v in asdict(tr).items() if k not in ("timing", "cpu", "realtime")}

@@ -35,19 +35,19 @@ def run_trial(
     vx: float,
     base_profile: Path,
     setup: Callable[[Harness], None] | None = None,
-    depth: float | None = None,
+    size: float | None = None,
     fixed_timing: bool = False,
     lateral_gain: float = LATERAL_GAIN,
     true_state: bool = False,
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
-    (or instrument) the harness's nodes before the run; ``depth`` is the stairs' tread depth
-    (None: hw_config/terrains/stairs.yaml's)."""
+    (or instrument) the harness's nodes before the run; ``size`` is the stairs' tread depth or
+    the beam's width (None: its terrain file's)."""
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         _, profile, launch, footholds, ground, goal = _prepare(
-            base_profile, name, dmin, seed, perception, work, depth=depth,
+            base_profile, name, dmin, seed, perception, work, size=size,
             fixed_timing=fixed_timing, true_state=true_state)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
@@ -97,7 +97,7 @@ def run_live_trial(
     mode: str,
     base_profile: Path = HW_CONFIG_DIR / "sim.yaml",
     log_dir: Path | None = None,
-    depth: float | None = None,
+    size: float | None = None,
     dashboard: bool = False,
     fixed_timing: bool = False,
     lateral_gain: float = LATERAL_GAIN,
@@ -114,7 +114,7 @@ def run_live_trial(
         logs = log_dir if log_dir is not None else work / "logs"
         logs.mkdir(parents=True, exist_ok=True)
         prof_path, profile, launch, footholds, ground, goal = _prepare(
-            base_profile, name, dmin, seed, perception, work, mode, depth, fixed_timing,
+            base_profile, name, dmin, seed, perception, work, mode, size, fixed_timing,
             true_state)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
