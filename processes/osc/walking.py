@@ -149,8 +149,9 @@ def swing_waypoints(p0: np.ndarray, p_des: np.ndarray, clearance: float, step_up
                     approach_tau: float) -> list[tuple[float, list[float]]]:
     """The waypoints (tau, p) of one swing, tau in fractions of the swing time T.
 
-    Below a rise of ``step_up_min`` (and always when it is 0) this is the paper's adaptive
-    midpoint at T/2 (Section V-B-1). Stepping up by more, three waypoints: the foot rises to
+    Below a rise or drop of ``step_up_min`` (and always when it is 0) this is the paper's
+    adaptive midpoint at T/2 (Section V-B-1). Stepping up by more, three waypoints: the foot
+    rises to
     ``step_up_height`` over the higher end straight above where it lifted off (at
     ``lift_tau``), crosses above the halfway point at ``step_up_clearance`` over the higher end
     (T/2), and is ``step_up_height`` straight above the target at ``approach_tau``. A step
@@ -161,17 +162,22 @@ def swing_waypoints(p0: np.ndarray, p_des: np.ndarray, clearance: float, step_up
     diagonally onto the step's nosing (measured in MuJoCo on 15 cm stairs: the heel lands on
     the edge, 7 cm short of the target); a midpoint above halfway at c clears the heel but
     not the toe (the toe hits the next riser, measured), and c = 15 cm over a 30 cm rise
-    folds the swing knee to its limit (measured).
+    folds the swing knee to its limit (measured). Stepping down as much, the same rise over the
+    edge the foot stands on, then down over the target: the paper's clearance there is
+    c + dz over the line between the ends, which passes below the edge right ahead of the toe
+    (measured on stepping stones: a 12 cm step down from a stone's front edge caught the toe
+    on it, the foot landed 28 cm short and the robot fell).
     """
     dz = float(p_des[2] - p0[2])
-    if step_up_min <= 0.0 or dz < step_up_min:
+    if step_up_min <= 0.0 or abs(dz) < step_up_min:
         return [(0.5, swing_midpoint(p0, p_des, clearance))]
     a, b = p0.tolist(), p_des.tolist()
     top = max(a[2], b[2])
     return [
         (lift_tau, [a[0], a[1], top + step_up_height]),
         (0.5, [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), top + step_up_clearance]),
-        (approach_tau, [b[0], b[1], top + step_up_height]),
+        # stepping down, the foot comes down over the target from its own height above it
+        (approach_tau, [b[0], b[1], (top if dz > 0.0 else b[2]) + step_up_height]),
     ]
 
 

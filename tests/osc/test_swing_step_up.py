@@ -63,12 +63,20 @@ def test_step_up_swing_clears_a_riser_just_ahead_of_the_toe_or_just_behind_the_h
         assert _gap_to_step(paper, heel_side, des[2]) < 0.01
 
 
-def test_level_and_down_steps_keep_the_papers_midpoint():
+def test_level_steps_keep_the_papers_midpoint_and_big_rises_or_drops_go_up_over_down():
     p0 = np.zeros(3)
-    for des in (np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.0, 0.03]), np.array([0.3, 0, -0.15])):
+    for des in (np.array([0.3, 0.0, 0.0]), np.array([0.3, 0.0, 0.03]),
+                np.array([0.3, 0.0, -0.03])):
         wps = swing_waypoints(p0, des, 0.15, 0.05, 0.06, 0.04, 0.25, 0.8)
         assert wps == [(0.5, swing_midpoint(p0, des, 0.15))]
     wps = swing_waypoints(p0, np.array([0.3, 0.0, 0.15]), 0.15, 0.05, 0.06, 0.04, 0.25, 0.8)
     assert [tau for tau, _ in wps] == [0.25, 0.5, 0.8]
     np.testing.assert_allclose(wps[0][1], [0.0, 0.0, 0.19])  # straight above lift-off
     np.testing.assert_allclose(wps[2][1], [0.3, 0.0, 0.19])  # straight above the target
+    # stepping down off an edge: up over the edge the foot stands on, then down over the
+    # target from above it (the paper's c + dz would pass under the edge ahead of the toe)
+    wps = swing_waypoints(p0, np.array([0.3, 0.0, -0.15]), 0.15, 0.05, 0.06, 0.04, 0.25, 0.8)
+    assert [tau for tau, _ in wps] == [0.25, 0.5, 0.8]
+    np.testing.assert_allclose(wps[0][1], [0.0, 0.0, 0.04])
+    np.testing.assert_allclose(wps[1][1], [0.15, 0.0, 0.06])
+    np.testing.assert_allclose(wps[2][1], [0.3, 0.0, -0.11])
