@@ -250,7 +250,33 @@ def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool 
     })
     for st in ("optimal", "time_limited", "infeasible"):
         figs[f"closed_loop_status_{st}_count"] = statuses.get(st, 0)
+    figs.update(retime_slowest(params, episodes, w))
     return figs
+
+
+def retime_slowest(params: MpfcParams, episodes: list[list[Instance]], wall: np.ndarray,
+                   count: int = 3, repeats: int = 3) -> dict[str, float]:
+    """The ``count`` slowest solves timed again, each ``repeats`` times in the same solver
+    state (a fresh solver replays its episode up to it, untimed): a solve that is slow again
+    is a hard instance, one that is fast was the machine stalling (this VM stalls for ms)."""
+    starts = np.cumsum([0] + [len(ep) for ep in episodes])
+    out: dict[str, float] = {}
+    for rank, k in enumerate(np.argsort(wall)[::-1][:count]):
+        e = int(np.searchsorted(starts, k, side="right") - 1)
+        i = int(k - starts[e])
+        again = []
+        for _ in range(repeats):
+            solver = MpfcSolver(params)
+            for inst in episodes[e][:i]:
+                solver.solve(inst.x_alip, inst.stance, inst.p_stance, inst.t_remaining_s,
+                             inst.vdes, inst.footholds, inst.yaw)
+            inst = episodes[e][i]
+            sol = solver.solve(inst.x_alip, inst.stance, inst.p_stance, inst.t_remaining_s,
+                               inst.vdes, inst.footholds, inst.yaw)
+            again.append(sol.solve_wall_ms)
+        out[f"closed_loop_slowest{rank + 1}_ms"] = float(wall[k])
+        out[f"closed_loop_slowest{rank + 1}_retimed_median_ms"] = float(np.median(again))
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:

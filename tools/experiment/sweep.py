@@ -188,3 +188,60 @@ def frange(text: str) -> list[float]:
         n = round((b - a) / step)
         return [round(a + i * step, 10) for i in range(n + 1)]
     return [float(x) for x in text.split(",") if x.strip()]
+
+
+def plot_sweeps(curves: Sequence[tuple[str, Path]], out_png: Path, title: str,
+                rate: str = "success_rate") -> Path:
+    """Several sweeps on one plot (the paper's Fig. 12: Opt-T and Fixed-T, GT and
+    perception): ``rate`` (``success_rate`` or ``crossed_rate``) of each sweep folder's
+    trials against the swept value, with the trials per point in the legend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for label, folder in curves:
+        rows = summarise(list(done_trials(Path(folder) / "trials.jsonl").values()))
+        if not rows:
+            continue
+        n = min(r["trials"] for r in rows)
+        ax.plot([100 * r["value"] for r in rows], [100 * r[rate] for r in rows], "o-",
+                label=f"{label} ({n} per point)")
+    ax.set_xlabel("d_min [cm]" if "dmin" in title else "swept value [cm]")
+    ax.set_ylabel(("success" if rate == "success_rate" else "crossed without a fall")
+                  + " [%]")
+    ax.set_ylim(-5, 105)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_png, dpi=110)
+    plt.close(fig)
+    return out_png
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m tools.experiment.sweep OUT.png LABEL=DIR ...``: sweeps on one plot."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m tools.experiment.sweep",
+                                 description="several sweeps' rates on one plot")
+    ap.add_argument("out", type=Path, help="the PNG to write")
+    ap.add_argument("curves", nargs="+", metavar="LABEL=DIR", help="a sweep folder per curve")
+    ap.add_argument("--title", default="stepping stones: success against dmin")
+    ap.add_argument("--rate", choices=("success_rate", "crossed_rate"), default="success_rate")
+    args = ap.parse_args(argv)
+    curves = []
+    for c in args.curves:
+        label, sep, folder = c.partition("=")
+        if not sep or not (Path(folder) / "trials.jsonl").is_file():
+            ap.error(f"{c!r}: want LABEL=DIR with DIR/trials.jsonl")
+        curves.append((label, Path(folder)))
+    print(plot_sweeps(curves, args.out, args.title, args.rate))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
