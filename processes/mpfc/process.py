@@ -126,6 +126,7 @@ class MpfcNode(Node):
         self.solves = 0
         self.failures = 0
         self.halts = 0  # times it stopped because no foothold ahead was within a step
+        self.halt_since_s = -1.0  # sim time the current stop began (-1: walking on)
 
     # -- inputs --------------------------------------------------------------------------------
     def _read_inputs(self, inbox: Any) -> None:
@@ -191,7 +192,9 @@ class MpfcNode(Node):
                 self.stance_pos[:2], ahead):
             log.warning("MPFC at t=%.2f s, stance foot at (%.2f, %.2f): %s", t,
                         self.stance_pos[0], self.stance_pos[1], self._halt_text())
-            self.halts += self.halt.state == Halt.STOPPING
+            stopping = self.halt.state == Halt.STOPPING
+            self.halts += stopping
+            self.halt_since_s = t if stopping else -1.0
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",
@@ -291,10 +294,11 @@ class MpfcNode(Node):
 
     def counters(self) -> dict[str, float]:
         """Solves, failed solves, and the stops for nothing reachable ahead (``halted``: 1
-        while stopping or stopped)."""
+        while stopping or stopped, since ``halt_since_s`` of sim time)."""
         return {"solves": float(self.solves), "failures": float(self.failures),
                 "halts": float(self.halts),
-                "halted": float(self.halt.state == Halt.STOPPING)}
+                "halted": float(self.halt.state == Halt.STOPPING),
+                "halt_since_s": self.halt_since_s}
 
 
 def _static_footholds(spec: str) -> list[Foothold]:

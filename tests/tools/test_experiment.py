@@ -142,3 +142,13 @@ def test_fixed_timing_pins_the_stance_time_to_its_nominal_in_the_variant_that_ru
             assert gains.t_ss_min_s == gains.t_ss_max_s == gains.t_ss_s == 0.30
         else:
             assert (gains.t_ss_min_s, gains.t_ss_max_s) == (0.27, 0.33)
+
+
+def test_a_fall_counts_as_stopped_only_when_the_stop_came_a_step_before_it():
+    from tools.experiment.judge import Trial
+
+    base = dict(experiment="stones", seed=0, fell=True, fall_time_s=6.0, halted_at_end=True)
+    assert Trial(**base, halt_s=4.0).fell_while_stopped  # stopped, then fell
+    assert not Trial(**base, halt_s=5.9).fell_while_stopped  # the fall made it stop
+    assert not Trial(**base, halt_s=-1.0).fell_while_stopped  # walking on when it fell
+    assert not Trial(**{**base, "fell": False}, halt_s=4.0).fell_while_stopped

@@ -25,6 +25,7 @@ SPEED_TOLERANCE = 0.15
 #: onto the first stance foot and the first steps' acceleration) is not walking at the command
 SPEED_FROM_S = 1.0
 GOAL_PAST_M = 0.15  # the pelvis this far onto the course's last surface: it has crossed
+HALT_BEFORE_FALL_S = 0.4  # a stop that began this long before a fall (a step) preceded it
 
 
 @dataclass
@@ -48,10 +49,18 @@ class Trial:
     goal_x_m: float | None = None
     reached_goal_s: float = -1.0  # when the pelvis got GOAL_PAST_M past it (-1: never)
     crossed: bool = False  # reached the end (or, without one, the whole trial) without a fall
-    #: the MPFC's stops for no foothold ahead within a step, and whether it was stopping (or
-    #: standing) for that at the end: a fall then is one where nothing ahead was reachable
+    #: the MPFC's stops for no foothold ahead within a step, whether it was stopping (or
+    #: standing) for that at the end and since when (s; -1: it was not)
     halts: int = 0
     halted_at_end: bool = False
+    halt_s: float = -1.0
+
+    @property
+    def fell_while_stopped(self) -> bool:
+        """A fall in a stop the MPFC began a step or more before it (nothing ahead was
+        reachable), not one that the fall itself began (a robot on the ground has nothing
+        ahead either)."""
+        return self.fell and 0.0 <= self.halt_s <= self.fall_time_s - HALT_BEFORE_FALL_S
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops

@@ -123,6 +123,14 @@ def run_sweep(specs: Sequence[TrialSpec], out_dir: Path, jobs: int | None = None
     return result
 
 
+def _fell_while_stopped(r: dict[str, Any]) -> bool:
+    """``Trial.fell_while_stopped`` of a trial record (False for records made before it)."""
+    from tools.experiment.judge import HALT_BEFORE_FALL_S
+
+    halt = float(r.get("halt_s", -1.0))
+    return bool(r["fell"]) and 0.0 <= halt <= float(r["fall_time_s"]) - HALT_BEFORE_FALL_S
+
+
 def summarise(trials: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per swept value: trials, success rate (the judge's rule, ``tools.experiment.judge``),
     crossed-without-a-fall rate, falls, and the mean distance and speed."""
@@ -138,8 +146,9 @@ def summarise(trials: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             "success_rate": sum(bool(r["success"]) for r in rs) / n,
             "crossed_rate": sum(bool(r["crossed"]) for r in rs) / n,
             "falls": sum(bool(r["fell"]) for r in rs),
-            # falls with the MPFC stopped for no foothold within a step ahead
-            "falls_halted": sum(bool(r["fell"]) and bool(r.get("halted_at_end")) for r in rs),
+            # falls with the MPFC stopped for no foothold within a step ahead, a step or more
+            # before the fall (``Trial.fell_while_stopped``)
+            "falls_halted": sum(_fell_while_stopped(r) for r in rs),
             "halts": sum(int(r.get("halts", 0)) for r in rs),
             "footsteps_outside": sum(int(r["footsteps_outside"]) for r in rs),
             "mean_distance_m": sum(float(r["distance_m"]) for r in rs) / n,

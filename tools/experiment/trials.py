@@ -83,6 +83,7 @@ def run_trial(
                 c = b.node.counters()
                 trial.halts = int(c.get("halts", 0))
                 trial.halted_at_end = bool(c.get("halted", 0))
+                trial.halt_s = float(c.get("halt_since_s", -1.0))
         h.close()
     return _verdict(trial, judge, launch)
 
