@@ -172,7 +172,9 @@ def main(argv: list[str] | None = None) -> int:
     ok = sum(t.success for t in trials)
     figures: dict[str, Any] = {
         "description": f"{args.name} in the deterministic harness"
-        + (" with perception" if args.perception else " with true footholds"),
+        + (" with perception" if args.perception else " with true footholds")
+        + (", the sim's true state" if args.true_state else ", the estimator's state")
+        + (", Fixed-T" if args.fixed_timing else ""),
         "trials": len(trials),
         "success_ratio": ok / len(trials),
         "falls": sum(t.fell for t in trials),
@@ -182,6 +184,8 @@ def main(argv: list[str] | None = None) -> int:
         "footsteps": sum(t.footsteps for t in trials),
         "footsteps_outside": sum(t.footsteps_outside for t in trials),
         "sim_duration_s": args.duration,
+        "reached_goal_s": float(np.mean([t.reached_goal_s for t in trials])),
+        "fall_time_s": float(np.mean([t.fall_time_s for t in trials])),
     }
     if args.dmin is not None:
         figures["dmin_m"] = args.dmin
