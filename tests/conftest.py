@@ -26,8 +26,8 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     """Compile the numba kernels (state estimator, MPFC search, OSC) into their on-disk cache
     once, up front: on a fresh clone the first compile takes ~10 s each, which would otherwise
     land inside the start-up timeout of whichever test first launches one of those processes."""
-    from processes.mpfc.qp_engine import QpEngine
-    from processes.mpfc.search import ExactSearch
+    from processes.footstep_search.qp_engine import QpEngine
+    from processes.footstep_search.search import ExactSearch
 
     ExactSearch(QpEngine(2))
     if os.environ.get("MENAGERIE_ROOT"):

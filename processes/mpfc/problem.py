@@ -19,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from processes.footstep_search.footholds import LocalFootholds
+from processes.footstep_search.qp_engine import CondensedQp
 from processes.mpfc.alip import AlipModel, VelocitySubspace
-from processes.mpfc.footholds import LocalFootholds
 from processes.mpfc.params import MpfcParams
 
 
@@ -36,37 +37,34 @@ class SolveInputs:
     trust_radius: float  # half-width of the trust-region box, m
 
 
-@dataclass
-class CondensedQp:
-    """One solve's QP data in z = [tau, u, p_1xy, ..., p_Nxy] (tau = T - T*).
-
-    Objective without the soft limits: 0.5 z'Pz + q'z + const. Soft limits: rows
-    |Cs z + cs| <= lim penalised by w_soft * violation^2. Crossover rows: Gx z <= hx.
-    ALIP states: x_n = E[n] z + e[n].
-    """
-
-    P: np.ndarray
-    q: np.ndarray
-    const: float
-    Cs: np.ndarray
-    cs: np.ndarray
-    lim: np.ndarray
-    w_soft: float
-    Gx: np.ndarray
-    hx: np.ndarray
-    z_lo: np.ndarray
-    z_hi: np.ndarray
-    E: np.ndarray
-    e: np.ndarray
-
-    def penalty(self, z: np.ndarray) -> float:
-        """Soft-limit cost of z: w * sum(max(|x| - lim, 0)^2) over every state component."""
-        viol = np.maximum(np.abs(self.Cs @ z + self.cs) - self.lim, 0.0)
-        return float(self.w_soft * viol @ viol)
-
-    def objective(self, z: np.ndarray) -> float:
-        """Full objective (15a) of z, soft-limit penalty included."""
-        return float(0.5 * z @ self.P @ z + self.q @ z + self.const + self.penalty(z))
+def crossover_trust_masks(qp: CondensedQp, lf: LocalFootholds
+                          ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The MPFC's vertex tests (``CondensedQp.prefilter``): necessary conditions for a leaf to
+    be feasible. Step 1 must reach the crossover side and the trust-region box; each later
+    step must be able to lie on its crossover side of the previous one. Returns (ok_first
+    (M,), ok_pair[k] (M, M))."""
+    n = len(qp.hx)  # one crossover row per step
+    tol = 1e-9
+    y = lf.V[:, :, 1]
+    ymin, ymax = y.min(axis=1), y.max(axis=1)
+    # crossover row k: gx[k] z <= hx[k] with gx = -sigma_k (y_{k+1} - y_k)
+    sig = -qp.Gx[:, 3]  # coefficient of p_1y is -sigma_0
+    ok = np.where(sig[0] > 0, sig[0] * ymax >= -qp.hx[0] - tol,
+                  sig[0] * ymin >= -qp.hx[0] - tol)
+    lo, hi = qp.z_lo[2:4], qp.z_hi[2:4]
+    if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+        x = lf.V[:, :, 0]
+        ok &= (x.max(axis=1) >= lo[0] - tol) & (x.min(axis=1) <= hi[0] + tol)
+        ok &= (ymax >= lo[1] - tol) & (ymin <= hi[1] + tol)
+        corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+        ok &= np.all((lf.F @ corners.T).min(axis=2) <= lf.c + tol, axis=1)
+    pairs = []
+    for k in range(1, n):
+        s_k = -qp.Gx[k, 3 + 2 * k]  # sigma_k, the coefficient of p_{k+1,y}
+        hi_j = np.where(s_k > 0, s_k * ymax, s_k * ymin)  # max over P_j of sigma y
+        lo_i = np.where(s_k > 0, s_k * ymin, s_k * ymax)  # min over P_i of sigma y
+        pairs.append(hi_j[None, :] - lo_i[:, None] >= -qp.hx[k] - tol)
+    return ok, pairs
 
 
 class MpfcModel:
@@ -222,6 +220,7 @@ class MpfcModel:
         return CondensedQp(
             pmat, qvec, const, cs_mat, cs_vec, self.soft_lim, p.soft_constraint_cost,
             self._gx[float(inp.sigma0)], self._hx, z_lo, z_hi, e_mat, e_vec,
+            crossover_trust_masks,
         )
 
     def _nominal_step(self, inp: SolveInputs, n: int) -> np.ndarray:

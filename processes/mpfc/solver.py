@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from processes.mpfc.footholds import LocalFootholds, WorldFootholds, yaw_rotation
+from processes.footstep_search.footholds import LocalFootholds, WorldFootholds, yaw_rotation
+from processes.footstep_search.qp_engine import QpEngine
+from processes.footstep_search.search import ExactSearch
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.problem import MpfcModel, SolveInputs
-from processes.mpfc.qp_engine import QpEngine
-from processes.mpfc.search import ExactSearch
 from runtime.geometry import Foothold
 
 STANCES = ("left", "right")

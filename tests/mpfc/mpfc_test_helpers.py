@@ -7,11 +7,11 @@ import itertools
 
 import numpy as np
 
+from processes.footstep_search.footholds import LocalFootholds
+from processes.footstep_search.qp_engine import SOLVED, CondensedQp
+from processes.footstep_search.search import ExactSearch, SearchResult
 from processes.mpfc import MpfcParams, MpfcSolution, MpfcSolver
-from processes.mpfc.footholds import LocalFootholds
-from processes.mpfc.problem import CondensedQp, build_miqp
-from processes.mpfc.qp_engine import SOLVED
-from processes.mpfc.search import ExactSearch, SearchResult
+from processes.mpfc.problem import build_miqp
 from processes.mpfc.solver import Instance
 from runtime.params import check
 from tools.testbed.gurobi_reference import exhaustive_reference

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from processes.mpfc.footholds import WorldFootholds, yaw_rotation
+from processes.footstep_search.footholds import WorldFootholds, yaw_rotation
 from runtime.geometry import Foothold
 
 

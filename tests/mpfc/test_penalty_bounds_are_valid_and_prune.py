@@ -8,8 +8,8 @@ import itertools
 import numpy as np
 from mpfc_test_helpers import solve, solve_exactly, with_params
 
+from processes.footstep_search.qp_engine import SOLVED
 from processes.mpfc import MpfcSolver
-from processes.mpfc.qp_engine import SOLVED
 from tools.testbed.mpfc_instances import random_instance
 
 SLOW_OK = 10_000.0

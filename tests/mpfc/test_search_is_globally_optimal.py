@@ -113,8 +113,8 @@ def test_both_strategies_agree_on_a_stream_of_warm_solves(params) -> None:
     branch and bound agree on every solve of a walking-like stream, infeasible ones too."""
     import time
 
-    from processes.mpfc.qp_engine import QpEngine
-    from processes.mpfc.search import ExactSearch
+    from processes.footstep_search.qp_engine import QpEngine
+    from processes.footstep_search.search import ExactSearch
 
     solver = MpfcSolver(with_params(params, time_limit_ms=SLOW_OK))
     bb = ExactSearch(QpEngine(params.horizon_steps), params.optimality_rel_tol,
@@ -160,8 +160,8 @@ def test_one_foothold_is_solved_as_its_one_qp(params) -> None:
 def test_the_bounds_prune_no_leaf_better_than_the_answer(params, horizon) -> None:
     """Against every leaf QP of the search's own condensed form (no bound trusted), the
     search's answer is the best leaf, infeasible when every leaf is."""
-    from processes.mpfc.qp_engine import QpEngine
-    from processes.mpfc.search import ExactSearch
+    from processes.footstep_search.qp_engine import QpEngine
+    from processes.footstep_search.search import ExactSearch
 
     solver = MpfcSolver(with_params(params, horizon_steps=horizon, time_limit_ms=SLOW_OK))
     every = ExactSearch(QpEngine(horizon), params.optimality_rel_tol)

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 from mpfc_test_helpers import solve, with_params
 
+from processes.footstep_search.footholds import yaw_rotation
 from processes.mpfc import MpfcSolver
-from processes.mpfc.footholds import yaw_rotation
 from tools.testbed.mpfc_instances import random_instance
 
 

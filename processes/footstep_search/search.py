@@ -1,4 +1,4 @@
-"""Exact mixed-integer search for (15), over the QPs of `processes.mpfc.qp_engine`.
+"""Exact mixed-integer search for (15), over the QPs of `processes.footstep_search.qp_engine`.
 
 piqp has no integers, so the foothold assignment is searched here. Each leaf is a QP with
 one foothold fixed per step and its constraint hard (no big-M), which is exactly (15) with
@@ -23,7 +23,7 @@ those binaries fixed. Two strategies, both exact:
   assignments, unassigned footsteps relaxed to the bounding box of all footholds (a valid
   relaxation of (20)), children ordered and pre-pruned by the same per-foothold bounds.
 
-The soft CoM limits need slack variables; `QpEngine` (``processes.mpfc.qp_engine``) adds
+The soft CoM limits need slack variables; `QpEngine` (``processes.footstep_search.qp_engine``) adds
 them lazily, which keeps most QPs at 6 variables.
 """
 
@@ -38,9 +38,15 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from processes.mpfc.footholds import LocalFootholds
-from processes.mpfc.problem import CondensedQp
-from processes.mpfc.qp_engine import FAILED, INFEASIBLE, SOLVED, QpEngine, QpResult
+from processes.footstep_search.footholds import LocalFootholds
+from processes.footstep_search.qp_engine import (
+    FAILED,
+    INFEASIBLE,
+    SOLVED,
+    CondensedQp,
+    QpEngine,
+    QpResult,
+)
 
 
 @dataclass
@@ -257,31 +263,12 @@ class ExactSearch:
     def _feasible_masks(
         self, qp: CondensedQp, lf: LocalFootholds
     ) -> tuple[np.ndarray, list[np.ndarray]]:
-        """Necessary conditions for feasibility, from the vertices: step 1 must reach the
-        crossover side and the trust-region box; each later step must be able to lie on its
-        crossover side of the previous one. Returns (ok_first (M,), ok_pair[k] (M, M))."""
-        n = self.engine.N
-        tol = 1e-9
-        y = lf.V[:, :, 1]
-        ymin, ymax = y.min(axis=1), y.max(axis=1)
-        # crossover row k: gx[k] z <= hx[k] with gx = -sigma_k (y_{k+1} - y_k)
-        sig = -qp.Gx[:, 3]  # coefficient of p_1y is -sigma_0
-        ok = np.where(sig[0] > 0, sig[0] * ymax >= -qp.hx[0] - tol,
-                      sig[0] * ymin >= -qp.hx[0] - tol)
-        lo, hi = qp.z_lo[2:4], qp.z_hi[2:4]
-        if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
-            x = lf.V[:, :, 0]
-            ok &= (x.max(axis=1) >= lo[0] - tol) & (x.min(axis=1) <= hi[0] + tol)
-            ok &= (ymax >= lo[1] - tol) & (ymin <= hi[1] + tol)
-            corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
-            ok &= np.all((lf.F @ corners.T).min(axis=2) <= lf.c + tol, axis=1)
-        pairs = []
-        for k in range(1, n):
-            s_k = -qp.Gx[k, 3 + 2 * k]  # sigma_k, the coefficient of p_{k+1,y}
-            hi_j = np.where(s_k > 0, s_k * ymax, s_k * ymin)  # max over P_j of sigma y
-            lo_i = np.where(s_k > 0, s_k * ymin, s_k * ymax)  # min over P_i of sigma y
-            pairs.append(hi_j[None, :] - lo_i[:, None] >= -qp.hx[k] - tol)
-        return ok, pairs
+        """The planner's vertex tests (``CondensedQp.prefilter``), or every leaf kept."""
+        if qp.prefilter is not None:
+            return qp.prefilter(qp, lf)
+        m = lf.count
+        return np.ones(m, dtype=bool), [np.ones((m, m), dtype=bool)
+                                        for _ in range(self.engine.N - 1)]
 
     # -- strategies -------------------------------------------------------------------------
     def _enumerate(self, lf, f_b, lb_step, lb_sum, ok_first, ok_pairs, incumbent, deadline,

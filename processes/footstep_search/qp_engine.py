@@ -1,20 +1,23 @@
-"""The piqp QP engine of the exact MPFC search: one leaf or relaxation QP of (15) at a time.
+"""The piqp QP engine of the exact footstep search: one leaf or relaxation QP at a time.
 
-piqp has no integers: the search (``processes.mpfc.search``) fixes a foothold per step and
-asks this engine for that leaf's QP, with the foothold rows rewritten in place and the
-soft CoM limits' slack variables added lazily (see `QpEngine`), which keeps most QPs at 6
-variables.
+A footstep planner (the MPFC's (15), the DCM planner's (21)) hands its solve to the search as a
+``CondensedQp``: a convex QP in z = [two continuous variables, p_1xy, ..., p_Nxy] with hard
+linear rows, optional soft limits and one foothold polygon per footstep. piqp has no
+integers: the search (``processes.footstep_search.search``) fixes a foothold per step and asks
+this engine for that leaf's QP, with the foothold rows rewritten in place and the soft limits'
+slack variables added lazily (see `QpEngine`), which keeps most MPFC QPs at 6 variables.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import piqp
 
-from processes.mpfc.problem import CondensedQp
+from processes.footstep_search.footholds import LocalFootholds
 
 #: a QP's status (`QpResult.status`)
 #: a duality gap this large at piqp's iteration limit is a diverged dual (``QpEngine._run``)
@@ -22,6 +25,49 @@ DIVERGED_GAP = 1e8
 SOLVED = "solved"
 INFEASIBLE = "infeasible"
 FAILED = "failed"
+
+
+#: necessary conditions for a leaf to be feasible, from the footholds' vertices: (ok_first
+#: (M,), ok_pair[k] (M, M) for steps k, k+1); a planner's own (``CondensedQp.prefilter``)
+Prefilter = Callable[["CondensedQp", LocalFootholds], tuple[np.ndarray, list[np.ndarray]]]
+
+
+@dataclass
+class CondensedQp:
+    """One solve's QP in z = [a, b, p_1xy, ..., p_Nxy]: the planner's two continuous
+    variables (MPFC: tau = T - T* and the ankle torque u; DCM: sigma_1 and an unused one held
+    at 0 by its bounds) and the N footsteps the search assigns footholds to.
+
+    Objective without the soft limits: 0.5 z'Pz + q'z + const. Soft limits: rows
+    |Cs z + cs| <= lim penalised by w_soft * violation^2 (none: zero rows). Hard rows:
+    Gx z <= hx (MPFC: the crossover rows). Bounds z_lo <= z <= z_hi. The model's states:
+    x_n = E[n] z + e[n]. ``prefilter``: the planner's vertex tests that drop leaves before any
+    QP (None: none dropped).
+    """
+
+    P: np.ndarray
+    q: np.ndarray
+    const: float
+    Cs: np.ndarray
+    cs: np.ndarray
+    lim: np.ndarray
+    w_soft: float
+    Gx: np.ndarray
+    hx: np.ndarray
+    z_lo: np.ndarray
+    z_hi: np.ndarray
+    E: np.ndarray
+    e: np.ndarray
+    prefilter: Prefilter | None = None
+
+    def penalty(self, z: np.ndarray) -> float:
+        """Soft-limit cost of z: w * sum(max(|x| - lim, 0)^2) over every limited row."""
+        viol = np.maximum(np.abs(self.Cs @ z + self.cs) - self.lim, 0.0)
+        return float(self.w_soft * viol @ viol)
+
+    def objective(self, z: np.ndarray) -> float:
+        """The full objective of z, soft-limit penalty included."""
+        return float(0.5 * z @ self.P @ z + self.q @ z + self.const + self.penalty(z))
 
 
 @dataclass
@@ -36,7 +82,8 @@ class QpResult:
 class QpEngine:
     """piqp dense solvers for the leaf and relaxation QPs of one solve.
 
-    Foothold rows are rewritten in place for each assignment. The soft CoM limits enter
+    Foothold rows are rewritten in place for each assignment, after the QP's hard rows. The
+    soft limits enter
     lazily: each QP is solved with slack variables only for the state components in an active
     set A (empty at first); if the solution violates a limit outside A, those components join
     A and the QP is solved again. A QP whose dropped limits are all satisfied is exact,
@@ -47,10 +94,10 @@ class QpEngine:
     def __init__(self, n_steps: int, eps_abs: float = 1e-9, eps_rel: float = 1e-10) -> None:
         self.N = n_steps
         self.nz = 2 + 2 * n_steps
-        self.ns = 4 * (n_steps + 1)
         self.eps_abs = eps_abs
         self.eps_rel = eps_rel
-        self.K = 0
+        self.K = 0  # foothold rows per step
+        self.H = 0  # hard rows (the planner's; fixed per planner)
         self.qp: CondensedQp | None = None
         self.optimizer_s = 0.0
         self.solves = 0
@@ -67,19 +114,20 @@ class QpEngine:
     def load(self, qp: CondensedQp, k_rows: int) -> None:
         """Take this solve's QP data; foothold slots hold `k_rows` rows per step."""
         k_rows = max(4, k_rows)
-        if k_rows > self.K:
-            self.K = k_rows + (-k_rows) % 4
-            n = self.N
-            rows = n + n * self.K
+        hard = len(qp.hx)
+        if k_rows > self.K or hard != self.H:
+            self.K = max(self.K, k_rows + (-k_rows) % 4)
+            self.H = hard
+            rows = hard + self.N * self.K
             self.Gs = np.zeros((rows, self.nz))
             self.hs = np.ones(rows)
             self._solvers.clear()
         self.qp = qp
-        n, k = self.N, self.K
-        self.Gs[n: n + n * k] = 0.0
-        self.hs[n: n + n * k] = 1.0
-        self.Gs[:n] = qp.Gx
-        self.hs[:n] = qp.hx
+        n, k, hh = self.N, self.K, self.H
+        self.Gs[hh: hh + n * k] = 0.0
+        self.hs[hh: hh + n * k] = 1.0
+        self.Gs[:hh] = qp.Gx
+        self.hs[:hh] = qp.hx
         self._set_active(np.zeros(0, dtype=int))
         self.unpenalised = None
 
@@ -110,7 +158,7 @@ class QpEngine:
     def set_rows(self, step: int, f: np.ndarray | None, c: np.ndarray | None) -> None:
         """Write step `step`'s (0-based) foothold rows F p <= c, padded to the solve's row count
         with 0 <= 1 rows (None: only padding). Padding is finite so piqp strips nothing."""
-        r0 = self.N + step * self.K
+        r0 = self.H + step * self.K
         cols = slice(2 + 2 * step, 4 + 2 * step)
         if f is None:
             self.Gs[r0: r0 + self.K, cols] = 0.0
