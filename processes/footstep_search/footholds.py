@@ -185,3 +185,39 @@ def edge_dist_sq(points: np.ndarray, verts: np.ndarray, edges: np.ndarray) -> np
     wx -= t * ex
     wy -= t * ey
     return (wx * wx + wy * wy).min(axis=-1)
+
+
+class FootholdCache:
+    """The ``WorldFootholds`` of the newest foothold list, rebuilt only when the list changes
+    (by the footholds' identity: the process keeps the same objects while S3's set stands)."""
+
+    def __init__(self, min_normal_z: float) -> None:
+        self.min_normal_z = min_normal_z
+        self._world: WorldFootholds | None = None
+        self._key: tuple[int, ...] = ()
+
+    def world(self, footholds: list[Foothold]) -> WorldFootholds:
+        key = tuple(id(f) for f in footholds)
+        if self._world is None or key != self._key:
+            self._world = WorldFootholds(footholds, self.min_normal_z)
+            self._key = key
+        return self._world
+
+
+def shifted_incumbent(prev_indices: tuple[int, ...] | None, prev_stance: str, stance: str,
+                      lf: LocalFootholds) -> tuple[int, ...] | None:
+    """The previous solve's foothold assignment (caller indices), mapped to this solve's pruned
+    list by the foothold identity, shifted by one step after a touchdown; None when a foothold
+    of it is not in this solve's list."""
+    if prev_indices is None or lf.count == 0:
+        return None
+    where = {int(g): k for k, g in enumerate(lf.index)}
+    prev_idx = list(prev_indices)
+    if prev_stance != stance:  # touchdown happened: p_2 became p_1
+        prev_idx = prev_idx[1:] + prev_idx[-1:]
+    out = []
+    for g in prev_idx:
+        if g not in where:
+            return None
+        out.append(where[g])
+    return tuple(out)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from processes.footstep_search.footholds import LocalFootholds
+from processes.footstep_search.miqp import MiqpData
 from processes.footstep_search.qp_engine import CondensedQp
 from processes.mpfc.alip import AlipModel, VelocitySubspace
 from processes.mpfc.params import MpfcParams
@@ -228,40 +229,6 @@ class MpfcModel:
         t = self.params.t_s2s_s
         return np.array([inp.v_des[0] * t,
                          inp.v_des[1] * t + self.sigma(inp.sigma0, n) * self.params.step_width_m])
-
-
-@dataclass
-class MiqpData:
-    """(15) literally: min 0.5 v'Pv + q'v + const over continuous v and binary mu, with
-    Aeq v = beq, G v + Gmu mu <= h, Smu mu = 1, lb <= v <= ub.
-
-    v = [x_0..x_N (4 each), p_1..p_N (3 each, 3D), u, T, s (4(N+1) slacks)].
-    """
-
-    P: np.ndarray
-    q: np.ndarray
-    const: float
-    Aeq: np.ndarray
-    beq: np.ndarray
-    G: np.ndarray
-    Gmu: np.ndarray
-    h: np.ndarray
-    Smu: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
-    N: int
-    M: int
-    ip: int  # index of p_1 in v
-    iu: int
-    iT: int
-    t_nominal: float
-
-    def fixed(self, assignment: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-        """Rows (G, h) of the continuous problem with the binaries fixed to `assignment`."""
-        mu = np.zeros(self.N * self.M)
-        for n, i in enumerate(assignment):
-            mu[n * self.M + i] = 1.0
-        return self.G, self.h - self.Gmu @ mu
 
 
 def build_miqp(model: MpfcModel, inp: SolveInputs, lf: LocalFootholds) -> MiqpData:

@@ -18,7 +18,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from processes.footstep_search.footholds import LocalFootholds, WorldFootholds, yaw_rotation
+from processes.footstep_search.footholds import (
+    FootholdCache,
+    LocalFootholds,
+    WorldFootholds,
+    shifted_incumbent,
+    yaw_rotation,
+)
 from processes.footstep_search.qp_engine import QpEngine
 from processes.footstep_search.search import ExactSearch
 from processes.mpfc.params import MpfcParams
@@ -77,8 +83,7 @@ class MpfcSolver:
         self.engine = QpEngine(params.horizon_steps, params.qp_eps_abs, params.qp_eps_rel)
         self.search = ExactSearch(self.engine, params.optimality_rel_tol,
                                   params.enumerate_max_leaves, params.search)
-        self._world: WorldFootholds | None = None
-        self._world_key: tuple[int, ...] = ()
+        self._footholds = FootholdCache(params.min_normal_z)
         self._prev: MpfcSolution | None = None
         self.last_inputs: SolveInputs | None = None  # for tests and debugging
         self.last_local: LocalFootholds | None = None
@@ -92,11 +97,7 @@ class MpfcSolver:
         self._prev = None
 
     def _world_footholds(self, footholds: list[Foothold]) -> WorldFootholds:
-        key = tuple(id(f) for f in footholds)
-        if self._world is None or key != self._world_key:
-            self._world = WorldFootholds(footholds, self.params.min_normal_z)
-            self._world_key = key
-        return self._world
+        return self._footholds.world(footholds)
 
     def solve(
         self,
@@ -180,17 +181,6 @@ class MpfcSolver:
     def _incumbent(
         self, prev: MpfcSolution, stance: str, lf: LocalFootholds
     ) -> tuple[int, ...] | None:
-        """Previous solve's foothold assignment, mapped to this solve's pruned list by the
-        foothold identity (same caller index), shifted by one step after a touchdown."""
-        if prev.foothold_indices is None or lf.count == 0:
-            return None
-        where = {int(g): k for k, g in enumerate(lf.index)}
-        prev_idx = list(prev.foothold_indices)
-        if prev.stance != stance:  # touchdown happened: p_2 became p_1
-            prev_idx = prev_idx[1:] + prev_idx[-1:]
-        out = []
-        for g in prev_idx:
-            if g not in where:
-                return None
-            out.append(where[g])
-        return tuple(out)
+        """Previous solve's foothold assignment, mapped to this solve's list
+        (``footstep_search.footholds.shifted_incumbent``)."""
+        return shifted_incumbent(prev.foothold_indices, prev.stance, stance, lf)

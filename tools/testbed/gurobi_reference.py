@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from processes.mpfc.problem import MiqpData
+from processes.footstep_search.miqp import MiqpData
 
 try:  # gurobipy is optional
     import gurobipy as gp

@@ -1,0 +1,119 @@
+"""DcmSolver: the DCM planner behind the MPFC's solver interface, so the footstep-planner
+process runs either (``processes/mpfc/process.py``, ``params.planner``).
+
+The process hands every planner the same things: the ALIP state about the stance contact
+point in the stance frame (x = [x_com, y_com, L_x, L_y], Section III-A of Acosta & Posa), the
+stance side and foot, T* (the nominal time left in the stance, double stance included) and the
+desired velocity. The DCM of that state, for the ALIP with the CoM velocity L / (m H) (the
+pendulum's, without the centroidal momentum), is
+
+    xi = c + v / lambda  ->  xi_x = x_com + L_y / (m H lambda),  xi_y = y_com - L_x / (m H lambda)
+
+and the step began t~ = T_nom - T* ago, so (23) gives the initial DCM z_1 = xi e^{-lambda t~}
+(the stance foot at the origin). Cassie's step, double stance included, is the template's
+step: T_k spans touchdown to touchdown. The goal of (14) is the command's displacement over
+``goal_steps`` nominal steps, the nominal stride its displacement over one. No ankle torque
+(the DCM template has none): the plan's is 0.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from processes.dcm_planner.params import DcmParams
+from processes.dcm_planner.problem import DcmInputs, DcmModel
+from processes.footstep_search.footholds import FootholdCache, shifted_incumbent, yaw_rotation
+from processes.footstep_search.qp_engine import QpEngine
+from processes.footstep_search.search import ExactSearch
+from processes.mpfc.solver import STANCES, Instance, MpfcSolution
+from runtime.geometry import Foothold
+
+
+class DcmSolver:
+    """(21) solved to global optimality by the shared search; keeps the previous solution."""
+
+    def __init__(self, params: DcmParams, mass_kg: float = 33.3) -> None:
+        self.params = params
+        self.mass_kg = mass_kg
+        self.model = DcmModel(params)
+        self.engine = QpEngine(self.model.F, params.qp_eps_abs, params.qp_eps_rel)
+        self.search = ExactSearch(self.engine, params.optimality_rel_tol,
+                                  params.enumerate_max_leaves, params.search)
+        self._footholds = FootholdCache(params.min_normal_z)
+        self._prev: MpfcSolution | None = None
+        self.last_inputs: DcmInputs | None = None  # for tests and debugging
+        self.last_local = None
+        self.recorder: list | None = None  # as MpfcSolver's
+
+    def reset(self) -> None:
+        """Forget the previous solution (no incumbent)."""
+        self._prev = None
+
+    def dcm_of(self, x_alip: np.ndarray) -> np.ndarray:
+        """The DCM (relative to the stance foot, stance frame) of an ALIP state."""
+        p = self.params
+        mhl = self.mass_kg * p.com_height_m * p.lam
+        return np.array([x_alip[0] + x_alip[3] / mhl, x_alip[1] - x_alip[2] / mhl])
+
+    def solve(self, x_alip: np.ndarray, stance: str, p_stance: np.ndarray,
+              t_remaining_s: float, vdes: np.ndarray, footholds: list[Foothold],
+              yaw: float = 0.0) -> MpfcSolution:
+        """Plan from the ALIP state; see the module docstring for the frames and timing."""
+        t_start = time.perf_counter()
+        p = self.params
+        if self.recorder is not None:
+            self.recorder.append(Instance(
+                np.array(x_alip, dtype=float), stance, np.array(p_stance, dtype=float),
+                float(t_remaining_s), np.array(vdes, dtype=float), footholds, float(yaw)))
+        if stance not in STANCES:
+            raise ValueError(f"stance must be 'left' or 'right', got {stance!r}")
+        x = np.asarray(x_alip, dtype=float).reshape(4)
+        p_stance = np.asarray(p_stance, dtype=float).reshape(3)
+        v = np.asarray(vdes, dtype=float).reshape(2)
+        for what, val in (("x_alip", x), ("p_stance", p_stance), ("vdes", v),
+                          ("t_remaining_s", t_remaining_s), ("yaw", float(yaw))):
+            if not np.all(np.isfinite(val)):
+                raise ValueError(f"DcmSolver.solve: {what} is not finite ({val})")
+        elapsed = min(max(p.t_nom_s - float(t_remaining_s), 0.0), p.t_max_s)
+        z1 = self.dcm_of(x) * math.exp(-p.lam * elapsed)  # (23)
+        inp = DcmInputs(z1, v * p.t_nom_s * p.goal_steps, float(v[0] * p.t_nom_s),
+                        0 if stance == "left" else 1)
+        rot = yaw_rotation(yaw)
+        lf = self._footholds.world(footholds).local(
+            p_stance, yaw, p.foothold_max_count, p.foothold_max_distance_m, p.foothold_anchor_m)
+        self.last_inputs, self.last_local = inp, lf
+        qp = self.model.condense(inp)
+        prev = self._prev
+        incumbent = (shifted_incumbent(prev.foothold_indices, prev.stance, stance, lf)
+                     if prev is not None else None)
+        self.engine.optimizer_s = 0.0
+        res = self.search.run(qp, lf, incumbent, t_start + p.time_limit_ms * 1e-3)
+        n = self.model.F
+        sol = MpfcSolution(
+            status=res.status, footsteps=None, foothold_indices=None,
+            t_remaining_opt_s=float("nan"), first_stance_ss_duration_s=float("nan"),
+            ankle_torque_nm=float("nan"), alip_states=None, objective=res.objective,
+            solve_wall_ms=0.0, optimizer_ms=self.engine.optimizer_s * 1e3,
+            nodes_explored=res.nodes, footholds_considered=lf.count, stance=stance,
+            lower_bound=res.lower_bound)
+        if res.z is not None and res.assignment is not None:
+            z = res.z
+            steps_local = np.zeros((n, 3))
+            steps_local[:, :2] = z[2:].reshape(n, 2)
+            a = np.array(res.assignment)
+            steps_local[:, 2] = lf.alpha[a] + np.einsum("nj,nj->n", lf.beta[a],
+                                                        steps_local[:, :2])
+            sol.footsteps = p_stance + steps_local @ rot.T
+            sol.foothold_indices = tuple(int(i) for i in lf.index[a])
+            t1 = math.log(float(z[0])) / p.lam  # sigma_1 = e^{lambda T_1}
+            sol.t_remaining_opt_s = max(t1 - elapsed, 0.0)
+            sol.first_stance_ss_duration_s = t1
+            sol.ankle_torque_nm = 0.0
+            sol.alip_states = (np.einsum("kaz,z->ka", qp.E, z) + qp.e)[1:]  # z_1..z_{N+1}
+        sol.solve_wall_ms = (time.perf_counter() - t_start) * 1e3
+        if sol.has_plan:
+            self._prev = sol
+        return sol
