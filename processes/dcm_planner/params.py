@@ -23,6 +23,9 @@ class DcmParams:
     t_nom_s: float = spec(0.4, lo=0.1, hi=2.0, unit="s")  # nominal step duration
     t_min_s: float = spec(0.35, lo=0.05, hi=2.0, unit="s")  # shortest first step
     t_max_s: float = spec(0.55, lo=0.05, hi=2.0, unit="s")  # longest first step
+    #: the gait's double stance, part of every step (Cassie's, the MPFC's T_ds): where the
+    #: liftoff falls in the template's step (processes/dcm_planner/solver.py)
+    t_ds_s: float = spec(0.1, lo=0.0, hi=1.0, unit="s")
     l_min_m: float = spec(-0.6, lo=-2.0, hi=2.0, unit="m")  # stride length bounds (19)
     l_max_m: float = spec(0.6, lo=0.01, hi=2.0, unit="m")
     w_min_m: float = spec(0.08, lo=0.0, hi=2.0, unit="m")  # stride width bounds (19)
@@ -36,8 +39,6 @@ class DcmParams:
     w_sigma: float = spec(1.0, lo=0.0)  # w_sigma of (14)
     w_stride_x: float = spec(10.0, lo=0.0, unit="1/m^2")  # w_x of (14)
     w_stride_y: float = spec(10.0, lo=0.0, unit="1/m^2")  # w_y of (14)
-    #: the tracking goal of (14): the command's displacement over this many nominal steps
-    goal_steps: float = spec(4.0, lo=0.0, hi=20.0)
     variant: str = spec("A", choices=VARIANTS)  # the paper's ablation (A: the planner)
     # search and footholds, as the MPFC's
     foothold_max_count: int = spec(20, lo=1, hi=200)

@@ -29,7 +29,8 @@ import dataclasses
 import logging
 import math
 from dataclasses import dataclass
-from typing import Any
+from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -41,15 +42,18 @@ from lcmtypes import (
     mpfc_output_t,
     robot_state_t,
 )
+from processes.dcm_planner.params import DcmParams
+from processes.dcm_planner.solver import DcmSolver
 from processes.kinematics import AlipKinematics
 from processes.mpfc.gait import GaitClock, Halt, MapHeight, ReachableFootholds, within_height
 from processes.mpfc.params import MpfcParams
-from processes.mpfc.solver import MpfcSolution, MpfcSolver
+from processes.mpfc.solver import MpfcSolution, MpfcSolver, SupportTransfer
 from runtime.codecs import elevation_map_from_msg, footholds_from_msg
+from runtime.config import HW_CONFIG_DIR
 from runtime.config_types import ProcessConfig, Profile
 from runtime.geometry import Foothold
 from runtime.node import Node
-from runtime.params import spec
+from runtime.params import load, spec
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +84,25 @@ class Params:
     foothold_max_height_m: float = spec(DEFAULT_MAX_HEIGHT_M, lo=0.0, unit="m")
     #: the next footstep's height from the elevation map when there is one (Section IX-A-3)
     height_lookup: bool = True
+    #: the footstep planner: mpfc (Acosta & Posa, the gains file) or dcm (Xiang et al.'s
+    #: variable-timing DCM MIQP, ``processes.dcm_planner``; its gains in ``dcm_gains``)
+    planner: str = spec("mpfc", choices=("mpfc", "dcm"))
+    #: the DCM planner's gains file, relative to hw_config/ (or absolute)
+    dcm_gains: str = "gains/dcm_planner.yaml"
+    #: the DCM planner's ablation: A the planner, B fixed step, C N = 2, D no viability
+    dcm_variant: str = spec("A", choices=("A", "B", "C", "D"))
+
+
+class FootstepSolver(Protocol):
+    """What the node asks of a footstep planner (MpfcSolver, DcmSolver): a plan from the ALIP
+    state about the stance foot, and forgetting the previous one at a gait restart."""
+
+    def solve(self, x_alip: np.ndarray, stance: str, p_stance: np.ndarray,
+              t_remaining_s: float, vdes: np.ndarray, footholds: list[Foothold],
+              yaw: float = 0.0, transfer: SupportTransfer | None = None
+              ) -> MpfcSolution: ...
+
+    def reset(self) -> None: ...
 
 
 class MpfcNode(Node):
@@ -103,9 +126,11 @@ class MpfcNode(Node):
         default_velocity: tuple[float, float],
         height_lookup: bool,
         max_height_m: float = DEFAULT_MAX_HEIGHT_M,
+        solver: FootstepSolver | None = None,
     ) -> None:
         self.params = params
-        self.solver = MpfcSolver(params)
+        # (the gait clock is the MPFC's, T_ss + T_ds, whichever planner plans the steps)
+        self.solver: FootstepSolver = solver if solver is not None else MpfcSolver(params)
         self.kin = AlipKinematics()
         self.source = source
         self.footholds = static_footholds
@@ -121,6 +146,7 @@ class MpfcNode(Node):
         self.stance_pos = np.zeros(3)
         #: the swing foot's height where it lifted off (at the stance's start, both feet down)
         self.liftoff_z: float | None = None
+        self.liftoff_pos = np.zeros(3)  # ... and where (the previous stance foot)
         self.plan: MpfcSolution | None = None
         self.last_status = "none"
         self.solves = 0
@@ -178,7 +204,8 @@ class MpfcNode(Node):
             return
         stance_before, self.stance = self.stance, clock.stance
         if self.stance != stance_before:  # a touchdown (or the start): both feet down
-            self.liftoff_z = float(self.kin.foot_points[1 - self.stance][2])
+            self.liftoff_pos = self.kin.foot_points[1 - self.stance].copy()
+            self.liftoff_z = float(self.liftoff_pos[2])
         self.stance_pos = self.kin.foot_points[self.stance].copy()
         t_star = clock.remaining(t)
         x = self.kin.alip_state(self.stance_pos, yaw)
@@ -195,6 +222,7 @@ class MpfcNode(Node):
             stopping = self.halt.state == Halt.STOPPING
             self.halts += stopping
             self.halt_since_s = t if stopping else -1.0
+        in_ds, _, liftoff = clock.phase(t, p.t_ds_s)
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",
@@ -203,6 +231,8 @@ class MpfcNode(Node):
             self.vdes if self.halt.state == Halt.RUNNING else np.zeros(2),
             self._reachable_footholds(),
             yaw=yaw,
+            transfer=SupportTransfer(self.liftoff_pos, liftoff - t if in_ds else 0.0,
+                                     p.t_ds_s + clock.extra_ds_s),
         )
         self.solves += 1
         self.last_status = sol.status if self.halt.state == Halt.RUNNING else \
@@ -322,6 +352,15 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: Mpfc
         gains = dataclasses.replace(gains, time_limit_ms=math.inf)
     elif profile.rtf < 1.0:  # a slower machine running at a fraction of real time
         gains = dataclasses.replace(gains, time_limit_ms=gains.time_limit_ms / profile.rtf)
+    solver: FootstepSolver | None = None
+    if params.planner == "dcm":
+        path = Path(params.dcm_gains)
+        dcm = load(DcmParams, path if path.is_absolute() else HW_CONFIG_DIR / path)
+        # its search's budget as the MPFC's above: none in lockstep, stretched below rtf 1
+        budget = (math.inf if profile.mode == "lockstep"
+                  else dcm.time_limit_ms / min(profile.rtf, 1.0))
+        dcm = dataclasses.replace(dcm, variant=params.dcm_variant, time_limit_ms=budget)
+        solver = DcmSolver(dcm, gains.mass_kg)
     return MpfcNode(
         gains,
         "channel" if params.footholds == "channel" else "static",
@@ -329,4 +368,5 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: Mpfc
         params.default_velocity,
         params.height_lookup,
         params.foothold_max_height_m,
+        solver,
     )

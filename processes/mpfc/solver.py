@@ -47,6 +47,19 @@ class Instance:
     yaw: float
 
 
+@dataclass(frozen=True)
+class SupportTransfer:
+    """How support passed to the stance foot, for a planner whose model has no double stance
+    (the DCM planner's): the previous stance foot (world), the time left in the double stance
+    (0 once it is over) and its whole length; the OSC moves the centre of pressure from that
+    foot to the stance foot over it ((2) of Acosta & Posa). The MPFC's ALIP model has its own
+    ((28)) and ignores it."""
+
+    prev_foot: np.ndarray
+    left_s: float
+    length_s: float
+
+
 @dataclass
 class MpfcSolution:
     """One MPFC solve. `footsteps` etc. are None unless `has_plan` (status optimal, or
@@ -108,8 +121,10 @@ class MpfcSolver:
         vdes: np.ndarray,
         footholds: list[Foothold],
         yaw: float = 0.0,
+        transfer: SupportTransfer | None = None,
     ) -> MpfcSolution:
-        """Solve (15) for the current state; see the module docstring for frames and timing."""
+        """Solve (15) for the current state; see the module docstring for frames and timing.
+        (``transfer`` is for planners without the ALIP's double stance: unused here.)"""
         t_start = time.perf_counter()
         p = self.params
         if self.recorder is not None:

@@ -40,29 +40,81 @@ def _instances(count: int, seed: int, m_max: int):
         yield random_instance(rng, model, int(rng.integers(1, m_max + 1)))
 
 
-def test_the_states_follow_the_step_to_step_recursion_and_the_start_is_backward_propagated():
-    p = _params()
+def _integrate(xi: np.ndarray, t0: float, t1: float, cop, lam: float) -> np.ndarray:
+    """xi' = lambda (xi - p(t)) from t0 to t1, RK4 in 1 ms steps (the check's own)."""
+    n = max(round((t1 - t0) / 1e-3), 1)
+    h = (t1 - t0) / n
+    t = t0
+    for _ in range(n):
+        f = lambda tt, x: lam * (x - cop(tt))  # noqa: E731
+        k1 = f(t, xi)
+        k2 = f(t + h / 2, xi + h / 2 * k1)
+        k3 = f(t + h / 2, xi + h / 2 * k2)
+        k4 = f(t + h, xi + h * k3)
+        xi = xi + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        t += h
+    return xi
+
+
+def _ramp(p_prev: np.ndarray, p_k: np.ndarray, d: float):
+    """The OSC's CoP: from p_prev to p_k on a line over the first d seconds, then at p_k."""
+    return lambda t: p_k + (p_prev - p_k) * max(1.0 - t / d, 0.0) if d > 0 else p_k
+
+
+@pytest.mark.parametrize("t_ds", [0.0, 0.1])
+def test_the_states_follow_the_step_to_step_dynamics_with_the_double_stance_ramp(t_ds):
+    """With t_ds_s = 0 the paper's (8)/(12) exactly; with Cassie's 0.1 s double stance, the
+    DCM of xi' = lambda (xi - p) under the OSC's CoP ramp, integrated step by step."""
+    p = dataclasses.replace(_params(), t_ds_s=t_ds)
     model = DcmModel(p)
-    z1 = np.array([0.05, -0.08])
-    e_mat, e_vec = model.states(z1)
+    z1, p0 = np.array([0.05, -0.08]), np.array([-0.12, 0.2])
+    e_mat, e_vec = model.states(z1, p0)
     rng = np.random.default_rng(0)
     z = np.concatenate([[math.exp(p.lam * 0.45), 0.0], rng.normal(0.0, 0.3, 2 * model.F)])
-    steps = [np.zeros(2), *z[2:].reshape(model.F, 2)]
-    sig = [z[0]] + [model.sigma_nom] * (model.N - 1)
+    steps = [p0, np.zeros(2), *z[2:].reshape(model.F, 2)]  # p_0, p_1 = 0, p_2..p_N
+    durations = [0.45] + [p.t_nom_s] * (model.N - 1)
     want = z1
-    for k in range(1, model.N + 1):  # (8): xi_{k+1} = sigma_k xi_k + (1 - sigma_k) p_k
-        np.testing.assert_allclose(e_mat[k] @ z + e_vec[k], want, atol=1e-12)
-        want = sig[k - 1] * want + (1.0 - sig[k - 1]) * steps[k - 1]
-    np.testing.assert_allclose(e_mat[model.N + 1] @ z + e_vec[model.N + 1], want, atol=1e-12)
-    # (22)-(23): the DCM measured t~ into the step, propagated back, is its start
+    for k in range(1, model.N + 1):
+        np.testing.assert_allclose(e_mat[k] @ z + e_vec[k], want, atol=1e-9)
+        if t_ds == 0.0:  # (8): xi_{k+1} = sigma_k xi_k + (1 - sigma_k) p_k
+            sig = math.exp(p.lam * durations[k - 1])
+            want = sig * want + (1.0 - sig) * steps[k]
+        else:
+            want = _integrate(want, 0.0, durations[k - 1], _ramp(steps[k - 1], steps[k], t_ds),
+                              p.lam)
+    np.testing.assert_allclose(e_mat[model.N + 1] @ z + e_vec[model.N + 1], want, atol=1e-9)
+
+
+def test_the_measured_dcm_is_carried_back_to_the_steps_start_through_the_ramp():
+    """(22)-(23): the DCM measured in single stance t~ into the step, or in a double stance
+    (the start's longer one too), is taken to the z_1 from which the model's step map
+    reproduces it."""
+    from processes.mpfc.solver import SupportTransfer
+
+    p = _params()
     solver = DcmSolver(p)
     x = np.array([0.02, -0.05, 1.3, 9.0])
     xi = solver.dcm_of(x)
     mhl = solver.mass_kg * p.com_height_m * p.lam
     np.testing.assert_allclose(xi, [0.02 + 9.0 / mhl, -0.05 - 1.3 / mhl])
     foothold = [_flat()]
-    solver.solve(x, "left", np.zeros(3), p.t_nom_s - 0.1, np.array([0.3, 0.0]), foothold)
-    np.testing.assert_allclose(solver.last_inputs.z1, xi * math.exp(-p.lam * 0.1))
+    prev = np.array([-0.15, 0.22, 0.0])
+    # single stance, 0.25 s into the step: forward from z_1 through the ramp gives xi back
+    solver.solve(x, "left", np.zeros(3), p.t_nom_s - 0.25, np.array([0.3, 0.0]), foothold,
+                 transfer=SupportTransfer(prev, 0.0, p.t_ds_s))
+    z1 = solver.last_inputs.z1
+    np.testing.assert_allclose(
+        _integrate(z1, 0.0, 0.25, _ramp(prev[:2], np.zeros(2), p.t_ds_s), p.lam), xi,
+        atol=1e-9)
+    # the start's 0.4 s double stance, 0.1 s in: its ramp to the liftoff, then the template's
+    left, length = 0.3, 0.4
+    solver.solve(x, "left", np.zeros(3), p.t_nom_s, np.array([0.3, 0.0]), foothold,
+                 transfer=SupportTransfer(prev, left, length))
+    lift = _integrate(xi, length - left, length, _ramp(prev[:2], np.zeros(2), length), p.lam)
+    z1 = solver.last_inputs.z1
+    np.testing.assert_allclose(
+        _integrate(z1, 0.0, p.t_ds_s, _ramp(prev[:2], np.zeros(2), p.t_ds_s), p.lam), lift,
+        atol=1e-9)
 
 
 def _flat():

@@ -23,7 +23,8 @@ def test_the_profile_as_written_reads_its_params_and_gains(tmp_path: Path) -> No
     assert gains == load(type(gains), HW_CONFIG_DIR / "gains" / "mpfc.yaml", "hardware")
 
 
-ALL_PARAMS = "default_velocity, foothold_max_height_m, footholds, height_lookup, variant"
+ALL_PARAMS = ("dcm_gains, dcm_variant, default_velocity, foothold_max_height_m, footholds, "
+              "height_lookup, planner, variant")
 
 
 @pytest.mark.parametrize(("params", "key", "problem", "allowed"), [

@@ -31,6 +31,7 @@ from tools.benchmarks.common import print_table, write_json
 from tools.experiment.courses import (
     PERCEPTION_BEAM_WIDTH_M,
     PERCEPTION_STAIRS_DEPTH_M,
+    PLANNERS,
     _terrain_file,
 )
 from tools.experiment.judge import Judge, Trial
@@ -65,6 +66,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fixed-timing", action="store_true",
                     help="the MPFC's step-timing optimisation off: t_min = t_max = T_ss (the "
                          "paper's Fixed-T; default Opt-T)")
+    ap.add_argument("--planner", choices=PLANNERS, default="mpfc",
+                    help="the footstep planner: mpfc (Acosta & Posa), dcm (Xiang et al.'s "
+                         "variable-timing DCM MIQP), or its ablations dcm-B (fixed step), "
+                         "dcm-C (N = 2), dcm-D (no viability constraints)")
     ap.add_argument("--true-state", action="store_true",
                     help="the controllers on the sim's true pose and velocity instead of the "
                          "estimator's (the paper's GT runs: ground-truth state and terrain)")
@@ -145,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
                            args.vx, args.launch, base,
                            args.log_dir / f"trial{i}" if args.log_dir else None, size,
                            args.dashboard, args.fixed_timing, args.lateral_gain,
-                           args.true_state)
+                           args.true_state, args.planner)
             for i in range(args.trials)
         ]
     else:
@@ -153,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                       args.vx, args.profile, setup=recorder, size=size,
                       fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
-                      true_state=args.true_state)
+                      true_state=args.true_state, planner=args.planner)
             for i in range(args.trials)
         ]
     if recorder is not None:
@@ -174,7 +179,8 @@ def main(argv: list[str] | None = None) -> int:
         "description": f"{args.name} in the deterministic harness"
         + (" with perception" if args.perception else " with true footholds")
         + (", the sim's true state" if args.true_state else ", the estimator's state")
-        + (", Fixed-T" if args.fixed_timing else ""),
+        + (", Fixed-T" if args.fixed_timing else "")
+        + (f", planner {args.planner}" if args.planner != "mpfc" else ""),
         "trials": len(trials),
         "success_ratio": ok / len(trials),
         "falls": sum(t.fell for t in trials),
@@ -281,7 +287,8 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                        str(args.profile),
                        v if name in ("depth", "width") else (args.depth or args.width),
                        fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
-                       true_state=args.true_state, point=(f"{name}_m", v))
+                       true_state=args.true_state, planner=args.planner,
+                       point=(f"{name}_m", v))
              for v in grid for i in range(args.trials)]
     jobs = args.jobs or os.cpu_count() or 1
     print(f"sweep {args.name} {name} over {grid}: {len(specs)} trials, {jobs} at a time, "
@@ -292,6 +299,8 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     timing = "Fixed-T" if args.fixed_timing else "Opt-T"
     if args.true_state:
         timing += ", true state"
+    if args.planner != "mpfc":
+        timing += f", planner {args.planner}"
     png = write_summary(rows, result, out, f"{args.name}: {len(specs) // max(len(grid), 1)} "
                         f"trials per point, {feet} footholds, {timing}", jobs)
     print_table(f"sweep {args.name} over {name}", {

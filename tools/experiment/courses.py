@@ -46,6 +46,19 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
     return str(HW_CONFIG_DIR / "terrains" / f"{name}.yaml")
 
 
+#: ``--planner``: the MPFC, or the DCM planner (Xiang et al.) and its ablations B-D
+PLANNERS = ("mpfc", "dcm", "dcm-B", "dcm-C", "dcm-D")
+
+
+def planner_params(planner: str) -> dict[str, str]:
+    """The footstep-planner process's params for a ``PLANNERS`` name."""
+    if planner not in PLANNERS:
+        raise ValueError(f"planner {planner!r}: one of {', '.join(PLANNERS)}")
+    if planner == "mpfc":
+        return {"planner": "mpfc"}
+    return {"planner": "dcm", "dcm_variant": planner.partition("-")[2] or "A"}
+
+
 def _fixed_timing_gains(mpfc_gains: Path, work: Path) -> Path:
     """The MPFC's gains with its step-timing optimisation off (the paper's Fixed-T): the
     single-stance bounds t_min = t_max = T_ss, at the top and in every variant that sets them,
@@ -65,10 +78,11 @@ def _fixed_timing_gains(mpfc_gains: Path, work: Path) -> Path:
 
 def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool, work: Path,
                    mode: str | None = None, fixed_timing: bool = False,
-                   true_state: bool = False) -> tuple[Path, list[str]]:
+                   true_state: bool = False, planner: str = "mpfc") -> tuple[Path, list[str]]:
     """The experiment's profile: the base one on ``terrain``, perception joining or not, the
     MPFC's step timing optimised (Opt-T) or fixed (Fixed-T), the controllers on the
-    estimator's state or (``true_state``: the paper's GT runs) on the sim's true state."""
+    estimator's state or (``true_state``: the paper's GT runs) on the sim's true state, and
+    the footstep planner (``PLANNERS``) in the MPFC process's place."""
     base = load_profile(base_profile)
     launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
     if perception:
@@ -82,7 +96,7 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
         doc["mode"] = mode
     doc["launch"] = launch
     doc["overrides"] = {"sim": {"params": sim_params},
-                        "mpfc": {"params": {"footholds": "channel"}}}
+                        "mpfc": {"params": {"footholds": "channel", **planner_params(planner)}}}
     if true_state:
         # the estimator publishes the sim's true pose and velocity of every step
         doc["overrides"]["state_estimator"] = {"params": {"truth_state": True},
@@ -99,7 +113,7 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
 
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
              work: Path, mode: str | None = None, size: float | None = None,
-             fixed_timing: bool = False, true_state: bool = False
+             fixed_timing: bool = False, true_state: bool = False, planner: str = "mpfc"
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float],
                         float | None]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
@@ -109,7 +123,7 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
 
     terrain = _terrain_file(name, dmin, seed, work, size)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode,
-                                       fixed_timing, true_state)
+                                       fixed_timing, true_state, planner)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
     # the foot that the controller aims within
     ter = terrain_mod.load_terrain(terrain)
