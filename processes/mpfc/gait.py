@@ -162,32 +162,61 @@ class ReachableFootholds:
 #: where ``foothold_ahead`` looks for a place to step: metres ahead of the stance foot along
 #: the commanded direction, and to either side of that line (a step's reach at the paper's
 #: speeds: Table I's stones at d_min 35 cm leave up to ~0.55 m between footholds), every cm
-#: (a 27 cm tread less the foot leaves a 3 cm window)
-AHEAD_PROBES_M = tuple(np.round(np.arange(0.05, 0.605, 0.01), 3))
-SIDE_PROBES_M = (-0.20, -0.10, 0.0, 0.10, 0.20)
+#: (a 27 cm tread less the foot leaves a 3 cm window; a 17 cm beam less the foot 9 cm, which
+#: probes 10 cm apart across missed with the foot 5 cm off its centre line: a stop on the
+#: platform's edge, measured); ahead to twice a step from the far edge of the foothold
+#: underfoot
+STEP_REACH_M = 0.60
+AHEAD_PROBES_M = tuple(np.round(np.arange(0.05, 2 * STEP_REACH_M + 0.005, 0.01), 3))
+SIDE_PROBES_M = tuple(np.round(np.arange(-0.20, 0.205, 0.01), 3))
 
 
 def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
                    direction_xy: Sequence[float]) -> bool:
-    """Whether some foothold lies ahead within a step: any of the probe points
-    (``AHEAD_PROBES_M`` along ``direction_xy`` from the stance foot, ``SIDE_PROBES_M`` across
-    it) inside one of ``footholds``. False at the end of a course (the last stone, a beam's
-    or a landing's far edge, the reachable footholds filtered by height first), where stepping
-    on would step in place until the feet cross (ours; the paper's experiments end before)."""
+    """Whether the way goes on: the foothold the stance foot is on goes on for a whole step
+    (``STEP_REACH_M``) along ``direction_xy``, or another foothold lies within a step of where
+    it ends (of the stance foot, standing on none). Probed at ``AHEAD_PROBES_M`` along the
+    direction and ``SIDE_PROBES_M`` across it. False at the end of a course (the last stone, a
+    beam's or a landing's far edge, the reachable footholds filtered by height first), where
+    stepping on would step in place until the feet cross (ours; the paper's experiments end
+    before).
+
+    The ground underfoot counts only where it goes on for a whole step: counted to its edge,
+    the stop began with the stance foot at the edge of the stairs' start platform (treads too
+    shallow for the foot), the CoM still moving at 0.375 m/s and no room for a braking step;
+    Cassie stepped in place, toppled onto the stairs and fell (measured at 19-23 cm treads)."""
     d = np.asarray(direction_xy, dtype=float)
     n = float(np.hypot(d[0], d[1]))
     if n < 1e-9 or not footholds:
         return bool(footholds)
     d = d / n
     side = np.array([-d[1], d[0]])
-    a = np.asarray(AHEAD_PROBES_M)[:, None, None] * d
+    ahead = np.asarray(AHEAD_PROBES_M)
+    a = ahead[:, None, None] * d
     b = np.asarray(SIDE_PROBES_M)[None, :, None] * side
-    pts = (np.asarray(stance_xy, dtype=float)[:2] + a + b).reshape(-1, 2)
+    stance = np.asarray(stance_xy, dtype=float)[:2]
+    pts = (stance + a + b).reshape(-1, 2)
+    dist = np.repeat(ahead, len(SIDE_PROBES_M))  # each point's distance ahead
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    own_end, others = 0.0, []
     for f in footholds:
+        v = f.vertices_xy
+        if len(v) == 0 or np.any(v.min(axis=0) > hi) or np.any(v.max(axis=0) < lo):
+            continue  # wholly outside the probed area
         fa, fc = f.halfspaces_xy
-        if np.any(np.all(pts @ fa.T <= fc + 1e-9, axis=1)):
-            return True
-    return False
+        # only the probes in the foothold's bounding box (the whole set took 5 ms a call)
+        box = np.all((pts >= v.min(axis=0) - 1e-9) & (pts <= v.max(axis=0) + 1e-9), axis=1)
+        sel = np.flatnonzero(box)
+        hit = sel[np.all(pts[sel] @ fa.T <= fc + 1e-9, axis=1)]
+        if bool(np.all(stance @ fa.T <= fc + 1e-9)):  # the stance foot's own
+            within = hit[dist[hit] <= STEP_REACH_M + 1e-9]
+            if within.size:
+                own_end = max(own_end, float(dist[within].max()))
+        elif hit.size:
+            others.append(float(dist[hit].min()))
+    if own_end >= STEP_REACH_M - 1e-9:
+        return True
+    return any(near <= own_end + STEP_REACH_M + 1e-9 for near in others)
 
 
 class Halt:

@@ -153,6 +153,7 @@ class MpfcNode(Node):
         self.failures = 0
         self.halts = 0  # times it stopped because no foothold ahead was within a step
         self.halt_since_s = -1.0  # sim time the current stop began (-1: walking on)
+        self.halt_xy = (math.nan, math.nan)  # ... and where the stance foot was then
 
     # -- inputs --------------------------------------------------------------------------------
     def _read_inputs(self, inbox: Any) -> None:
@@ -222,6 +223,8 @@ class MpfcNode(Node):
             stopping = self.halt.state == Halt.STOPPING
             self.halts += stopping
             self.halt_since_s = t if stopping else -1.0
+            self.halt_xy = ((float(self.stance_pos[0]), float(self.stance_pos[1])) if stopping
+                            else (math.nan, math.nan))
         in_ds, _, liftoff = clock.phase(t, p.t_ds_s)
         sol = self.solver.solve(
             x,
@@ -324,11 +327,13 @@ class MpfcNode(Node):
 
     def counters(self) -> dict[str, float]:
         """Solves, failed solves, and the stops for nothing reachable ahead (``halted``: 1
-        while stopping or stopped, since ``halt_since_s`` of sim time)."""
+        while stopping or stopped, since ``halt_since_s`` of sim time, the stance foot then
+        at ``halt_x``, ``halt_y``)."""
         return {"solves": float(self.solves), "failures": float(self.failures),
                 "halts": float(self.halts),
                 "halted": float(self.halt.state == Halt.STOPPING),
-                "halt_since_s": self.halt_since_s}
+                "halt_since_s": self.halt_since_s,
+                "halt_x": self.halt_xy[0], "halt_y": self.halt_xy[1]}
 
 
 def _static_footholds(spec: str) -> list[Foothold]:

@@ -31,3 +31,17 @@ def test_the_halt_stops_at_the_course_end_and_walks_on_when_a_foothold_appears()
     assert not h.update([platform], (0.0, 0.0), (1.0, 0.0))  # (stays: no change to say)
     assert h.update([platform, _rect(0.3, 0.6)], (0.0, 0.0), (1.0, 0.0))
     assert h.state == Halt.RUNNING
+
+
+def test_the_ground_underfoot_counts_only_where_it_goes_on_for_a_whole_step() -> None:
+    """A platform ending 0.3 m ahead with nothing beyond: stop now, with room to brake, not
+    at its edge; a long one (flat ground) or another foothold beyond goes on."""
+    short = _rect(-1.0, 0.3)
+    assert not foothold_ahead([short], (0.0, 0.0), (1.0, 0.0))
+    assert foothold_ahead([_rect(-1.0, 5.0)], (0.0, 0.0), (1.0, 0.0))
+    assert foothold_ahead([short, _rect(0.45, 0.8)], (0.0, 0.0), (1.0, 0.0))
+    # a tread a step beyond the platform's edge, out of a step from the foot: walk to it
+    assert foothold_ahead([short, _rect(0.72, 0.75)], (0.0, 0.0), (1.0, 0.0))
+    assert not foothold_ahead([short, _rect(0.95, 1.2)], (0.0, 0.0), (1.0, 0.0))
+    # standing off every foothold (a foot on an edge), the one ahead still counts
+    assert foothold_ahead([_rect(0.1, 0.3)], (0.0, 0.0), (1.0, 0.0))

@@ -152,3 +152,5 @@ def test_a_fall_counts_as_stopped_only_when_the_stop_came_a_step_before_it():
     assert not Trial(**base, halt_s=5.9).fell_while_stopped  # the fall made it stop
     assert not Trial(**base, halt_s=-1.0).fell_while_stopped  # walking on when it fell
     assert not Trial(**{**base, "fell": False}, halt_s=4.0).fell_while_stopped
+    # a stop begun with the stance foot off the course: the fall (a foot off the beam) began it
+    assert not Trial(**base, halt_s=4.0, halt_on_foothold=False).fell_while_stopped

@@ -54,13 +54,16 @@ class Trial:
     halts: int = 0
     halted_at_end: bool = False
     halt_s: float = -1.0
+    #: the stop began with the stance foot on a true foothold (not off the course, falling)
+    halt_on_foothold: bool = True
 
     @property
     def fell_while_stopped(self) -> bool:
         """A fall in a stop the MPFC began a step or more before it (nothing ahead was
-        reachable), not one that the fall itself began (a robot on the ground has nothing
-        ahead either)."""
-        return self.fell and 0.0 <= self.halt_s <= self.fall_time_s - HALT_BEFORE_FALL_S
+        reachable) with the stance foot on the course, not one that the fall itself began (a
+        robot on the ground, or a foot off the beam, has nothing ahead either)."""
+        return (self.fell and self.halt_on_foothold
+                and 0.0 <= self.halt_s <= self.fall_time_s - HALT_BEFORE_FALL_S)
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops

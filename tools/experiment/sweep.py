@@ -131,7 +131,8 @@ def _fell_while_stopped(r: dict[str, Any]) -> bool:
     from tools.experiment.judge import HALT_BEFORE_FALL_S
 
     halt = float(r.get("halt_s", -1.0))
-    return bool(r["fell"]) and 0.0 <= halt <= float(r["fall_time_s"]) - HALT_BEFORE_FALL_S
+    return (bool(r["fell"]) and bool(r.get("halt_on_foothold", True))
+            and 0.0 <= halt <= float(r["fall_time_s"]) - HALT_BEFORE_FALL_S)
 
 
 def summarise(trials: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
