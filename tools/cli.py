@@ -12,7 +12,8 @@ from pathlib import Path
 from runtime.errors import ConfigError, exit_code
 from runtime.run import add_arguments as add_run_arguments
 
-BENCHMARKS = ("sim", "estimator", "mpfc", "osc", "s3", "lcm", "launch", "bridge", "segmenters")
+BENCHMARKS = ("sim", "estimator", "mpfc", "dcm", "osc", "s3", "lcm", "launch", "bridge",
+              "segmenters")
 
 
 def _cmd_launch(args: argparse.Namespace) -> int:

@@ -18,13 +18,15 @@ import gc
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from processes.footstep_search.miqp import MiqpData
 from processes.mpfc import MpfcParams, MpfcSolver
-from processes.mpfc.problem import MpfcModel, build_miqp
+from processes.mpfc.problem import build_miqp
 from processes.mpfc.solver import Instance
 from tools.benchmarks.common import (
     machine_description,
@@ -45,17 +47,18 @@ WARM_PER_EPISODE = 3
 WARM_DT_S = 0.03
 
 
-def compare_gurobi(backend: GurobiBackend, model: MpfcModel, problems: list[tuple[Any, ...]],
-                   prefix: str) -> dict[str, object]:
-    """Gurobi on the literal MIQP of each (inputs, footholds, our status, our objective, our
-    solve ms) problem: its times, the ratio to ours, and how the objectives compare (ours
-    higher: Gurobi found a better point; Gurobi higher: it stopped short)."""
+def compare_gurobi(backend: GurobiBackend, build: Callable[[Any, Any], MiqpData],
+                   problems: list[tuple[Any, ...]], prefix: str) -> dict[str, object]:
+    """Gurobi on the literal MIQP (``build(inputs, footholds)``, the planner's) of each
+    (inputs, footholds, our status, our objective, our solve ms) problem: its times, the
+    ratio to ours, and how the objectives compare (ours higher: Gurobi found a better point;
+    Gurobi higher: it stopped short)."""
     g_run, g_wall, g_nodes = [], [], []
     compared = ours_higher = gurobi_higher = status_diff = 0
     max_rel = 0.0
     bar = progress(len(problems), "Gurobi", unit="solve")
     for inp, lf, status, objective, _ in problems:
-        g = backend.solve(build_miqp(model, inp, lf))
+        g = backend.solve(build(inp, lf))
         g_run.append(g.runtime_ms)
         g_wall.append(g.wall_ms)
         g_nodes.append(g.nodes)
@@ -168,7 +171,8 @@ def run(params: MpfcParams, solves: int, seed: int, use_gurobi: bool, gurobi_eve
     if backend is not None and problems:
         # Gurobi afterwards, on exactly the problems the search solved, so that neither run
         # disturbs the other's timing
-        figs.update(compare_gurobi(backend, model, problems, "gurobi"))
+        figs.update(compare_gurobi(backend, lambda i, f: build_miqp(model, i, f), problems,
+                                   "gurobi"))
     return figs
 
 
@@ -238,7 +242,8 @@ def replay(params: MpfcParams, episodes: list[list[Instance]], use_gurobi: bool 
     figs: dict[str, object] = {"closed_loop_solves": int(w.size)}
     figs.update(summarize(w, "closed_loop_solve"))
     if problems:
-        figs.update(compare_gurobi(GurobiBackend(), model, problems, "closed_loop_gurobi"))
+        figs.update(compare_gurobi(GurobiBackend(), lambda i, f: build_miqp(model, i, f),
+                                   problems, "closed_loop_gurobi"))
     cnt = np.asarray(counts)
     figs.update({
         "closed_loop_nodes_mean": float(np.mean(nodes)),
