@@ -160,7 +160,7 @@ class ReachableFootholds:
 
 
 #: where ``foothold_ahead`` looks for a place to step: metres ahead of the stance foot along
-#: the commanded direction, and to either side of that line (a step's reach at the paper's
+#: the commanded direction, and to the swing foot's side of that line (a step's reach at the paper's
 #: speeds: Table I's stones at d_min 35 cm leave up to ~0.55 m between footholds), every cm
 #: (a 27 cm tread less the foot leaves a 3 cm window; a 17 cm beam less the foot 9 cm, which
 #: probes 10 cm apart across missed with the foot 5 cm off its centre line: a stop on the
@@ -168,11 +168,13 @@ class ReachableFootholds:
 #: underfoot
 STEP_REACH_M = 0.60
 AHEAD_PROBES_M = tuple(np.round(np.arange(0.05, 2 * STEP_REACH_M + 0.005, 0.01), 3))
-SIDE_PROBES_M = tuple(np.round(np.arange(-0.20, 0.205, 0.01), 3))
+SIDE_PROBES_M = tuple(np.round(np.arange(-0.35, 0.355, 0.01), 3))
+BOTH_SIDES_M = 0.20  # (without a swing side: this far to either side)
 
 
 def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
-                   direction_xy: Sequence[float]) -> bool:
+                   direction_xy: Sequence[float], swing_side: float = 0.0,
+                   margin_m: float = 0.0) -> bool:
     """Whether the way goes on: the foothold the stance foot is on goes on for a whole step
     (``STEP_REACH_M``) along ``direction_xy``, or another foothold lies within a step of where
     it ends (of the stance foot, standing on none). Probed at ``AHEAD_PROBES_M`` along the
@@ -184,7 +186,14 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     The ground underfoot counts only where it goes on for a whole step: counted to its edge,
     the stop began with the stance foot at the edge of the stairs' start platform (treads too
     shallow for the foot), the CoM still moving at 0.375 m/s and no room for a braking step;
-    Cassie stepped in place, toppled onto the stairs and fell (measured at 19-23 cm treads)."""
+    Cassie stepped in place, toppled onto the stairs and fell (measured at 19-23 cm treads).
+
+    ``swing_side`` (+1: the swing foot is the left, -1: the right, 0: either) keeps the probes
+    across to the swing foot's side of the stance foot, ``margin_m`` and more (the MPFC's
+    crossover constraint): on a beam too narrow for the feet to pass beside each other, the
+    right foot on it and the left on the platform, probes to both sides found the beam ahead
+    of the right foot, so the gait went on, stopped at the left foot's touchdown, went on at
+    the right's, and fell (measured on a 15 cm beam)."""
     d = np.asarray(direction_xy, dtype=float)
     n = float(np.hypot(d[0], d[1]))
     if n < 1e-9 or not footholds:
@@ -193,10 +202,15 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     side = np.array([-d[1], d[0]])
     ahead = np.asarray(AHEAD_PROBES_M)
     a = ahead[:, None, None] * d
-    b = np.asarray(SIDE_PROBES_M)[None, :, None] * side
+    across = np.asarray(SIDE_PROBES_M)
+    if swing_side:  # the swing foot's side, out to a wide step (Cassie's hips: ~0.35 m)
+        across = math.copysign(1.0, swing_side) * across[across >= margin_m - 1e-9]
+    else:
+        across = across[np.abs(across) <= BOTH_SIDES_M + 1e-9]
+    b = across[None, :, None] * side
     stance = np.asarray(stance_xy, dtype=float)[:2]
     pts = (stance + a + b).reshape(-1, 2)
-    dist = np.repeat(ahead, len(SIDE_PROBES_M))  # each point's distance ahead
+    dist = np.repeat(ahead, len(across))  # each point's distance ahead
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     own_end, others = 0.0, []
     for f in footholds:
@@ -226,20 +240,31 @@ class Halt:
     nothing ahead the gait steps to a stop (desired velocity 0) and asks to stand in every
     double stance (``STOPPING``: the MPFC publishes the standing gait state there, and the OSC
     hands over to its standing controller in the first double stance with the CoM at rest, as
-    for the radio's stand). It goes on (``RUNNING``) at the first touchdown with a foothold
-    ahead (a command in another direction, perception's new footholds)."""
+    for the radio's stand). It goes on (``RUNNING``) once both feet in turn find a foothold
+    ahead (``WALK_ON_TOUCHDOWNS`` touchdowns in a row: a command in another direction,
+    perception's new footholds). (Going on at the first, the right foot on a beam too narrow
+    for the left to pass beside it stopped, the left foot on the platform went on, and so on
+    until Cassie fell: measured on a 15 cm beam.)"""
 
     RUNNING, STOPPING = "running", "stopping"
+    WALK_ON_TOUCHDOWNS = 2
 
     def __init__(self) -> None:
         self.state = self.RUNNING
+        self._clear = 0  # touchdowns in a row with a foothold ahead, while stopping
 
     def update(self, footholds: Sequence[Foothold], stance_xy: Sequence[float],
-               direction_xy: Sequence[float]) -> bool:
-        """At a touchdown: the new state; True when it changed."""
+               direction_xy: Sequence[float], swing_side: float = 0.0,
+               margin_m: float = 0.0) -> bool:
+        """At a touchdown: the new state; True when it changed (``foothold_ahead``'s
+        arguments)."""
         before = self.state
-        ahead = foothold_ahead(footholds, stance_xy, direction_xy)
-        self.state = self.RUNNING if ahead else self.STOPPING
+        ahead = foothold_ahead(footholds, stance_xy, direction_xy, swing_side, margin_m)
+        self._clear = self._clear + 1 if ahead else 0
+        if not ahead:
+            self.state = self.STOPPING
+        elif self.state == self.STOPPING and self._clear >= self.WALK_ON_TOUCHDOWNS:
+            self.state = self.RUNNING
         return self.state != before
 
 

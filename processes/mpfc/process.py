@@ -217,7 +217,8 @@ class MpfcNode(Node):
         # above the upper foot is out of the swing foot's band but the step after takes it)
         if self.stance != stance_before and self.halt.update(
                 within_height(self.footholds, float(self.stance_pos[2]), self.max_height_m),
-                self.stance_pos[:2], ahead):
+                self.stance_pos[:2], ahead, 1.0 if self.stance == RIGHT else -1.0,
+                p.crossover_margin_m):
             log.warning("MPFC at t=%.2f s, stance foot at (%.2f, %.2f): %s", t,
                         self.stance_pos[0], self.stance_pos[1], self._halt_text())
             stopping = self.halt.state == Halt.STOPPING

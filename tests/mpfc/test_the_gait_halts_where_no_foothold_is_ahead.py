@@ -29,6 +29,8 @@ def test_the_halt_stops_at_the_course_end_and_walks_on_when_a_foothold_appears()
     assert h.state == Halt.RUNNING
     assert h.update([platform], (0.0, 0.0), (1.0, 0.0)) and h.state == Halt.STOPPING
     assert not h.update([platform], (0.0, 0.0), (1.0, 0.0))  # (stays: no change to say)
+    # it walks on once both feet in turn find a foothold ahead: two touchdowns in a row
+    assert not h.update([platform, _rect(0.3, 0.6)], (0.0, 0.0), (1.0, 0.0))
     assert h.update([platform, _rect(0.3, 0.6)], (0.0, 0.0), (1.0, 0.0))
     assert h.state == Halt.RUNNING
 
@@ -45,3 +47,17 @@ def test_the_ground_underfoot_counts_only_where_it_goes_on_for_a_whole_step() ->
     assert not foothold_ahead([short, _rect(0.95, 1.2)], (0.0, 0.0), (1.0, 0.0))
     # standing off every foothold (a foot on an edge), the one ahead still counts
     assert foothold_ahead([_rect(0.1, 0.3)], (0.0, 0.0), (1.0, 0.0))
+
+
+def test_only_the_swing_foots_side_beyond_the_crossover_margin_counts() -> None:
+    """The right foot on a 7 cm beam face: the left foot, next to swing, must land 6 cm or
+    more to its left, where there is no beam: stop (and the right foot's turn finds it)."""
+    beam = _rect(0.0, 8.0, -0.035, 0.035)
+    right_on_beam = (0.5, 0.03)
+    assert not foothold_ahead([beam], right_on_beam, (1.0, 0.0), swing_side=1.0, margin_m=0.06)
+    assert foothold_ahead([beam], right_on_beam, (1.0, 0.0))  # either side: it is there
+    left_on_beam = (0.5, 0.03)
+    assert foothold_ahead([beam], left_on_beam, (1.0, 0.0), swing_side=-1.0, margin_m=0.06)
+    # a stone 30 cm to the swing side, a step ahead, is found
+    assert foothold_ahead([_rect(-0.5, 0.1), _rect(0.3, 0.6, 0.25, 0.45)], (0.0, 0.0),
+                          (1.0, 0.0), swing_side=1.0, margin_m=0.06)
