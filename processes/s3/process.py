@@ -10,16 +10,20 @@ why; nothing here raises on data.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from lcmtypes import elevation_map_t, foothold_set_t
+from processes.dcm_planner.regions import ContourRegions, RegionParams
 from processes.s3.params import S3Params
 from processes.s3.pipeline import STATUS_STALE, S3Pipeline, S3Result
 from runtime.codecs import elevation_map_from_msg, footholds_to_msg
+from runtime.config import HW_CONFIG_DIR
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Node
+from runtime.params import load, spec
 
 
 def foothold_message(result: S3Result, utime: int, map_seq: int) -> foothold_set_t:
@@ -37,8 +41,9 @@ class S3Node(Node):
     outputs = {"footholds": foothold_set_t}
     trigger_role = "elevation_map"
 
-    def __init__(self, params: S3Params) -> None:
+    def __init__(self, params: S3Params, regions: ContourRegions | None = None) -> None:
         self.pipeline = S3Pipeline(params)
+        self.regions = regions  # the DCM planner's front end in S3's place (params.method)
         self.last_status = "no map yet"
         self.maps = 0
 
@@ -46,6 +51,14 @@ class S3Node(Node):
         msg: elevation_map_t = inbox.trigger()
         self.maps += 1
         layers = elevation_map_from_msg(msg)
+        if self.regions is not None and not isinstance(layers, str) and "elevation" in layers:
+            held = self.regions.process(layers["elevation"], msg.resolution,
+                                        np.asarray(msg.origin, dtype=float),
+                                        msg.header.utime * 1e-6)
+            self.last_status = f"ok: {len(held)} contour regions"
+            ctx.publish("footholds", footholds_to_msg(
+                held, msg.header.utime, msg.header.seq, "ok" if held else "no safe terrain"))
+            return
         if isinstance(layers, str) or "elevation" not in layers:
             why = layers if isinstance(layers, str) else "map has no 'elevation' layer"
             result = self.pipeline.process(np.empty((0, 0)), msg.resolution or 1.0, np.zeros(2))
@@ -77,8 +90,18 @@ class Params:
     """S3's ``params:`` (hw_config/processes.yaml, and the profiles' overrides)."""
 
     variant: str = "simulation"  # the column of Table VIII: a variant of the gains file
+    #: the foothold extraction: s3 (S3 + convex decomposition, Section VI) or contours (the
+    #: DCM planner's front end, Xiang et al. Alg. 3: processes.dcm_planner.regions)
+    method: str = spec("s3", choices=("s3", "contours"))
+    #: the contour front end's gains file, relative to hw_config/ (or absolute)
+    regions_gains: str = "gains/dcm_regions.yaml"
 
 
 def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: S3Params) -> Node:
-    """S3 from hw_config (gains: Table VIII, per variant)."""
-    return S3Node(gains)
+    """S3 from hw_config (gains: Table VIII, per variant), or the contour front end."""
+    regions = None
+    if params.method == "contours":
+        path = Path(params.regions_gains)
+        regions = ContourRegions(load(RegionParams,
+                                      path if path.is_absolute() else HW_CONFIG_DIR / path))
+    return S3Node(gains, regions)

@@ -29,11 +29,14 @@ def test_the_profile_as_written_builds_in_its_variant(tmp_path: Path) -> None:
 def test_a_bad_param_names_the_profile_the_key_and_what_is_allowed(tmp_path: Path) -> None:
     err = config_error(tmp_path, "s3", {"varient": "hardware"}, mode="lockstep")
     assert_names(err, tmp_path / "one.yaml", "processes.s3.params.varient", "unknown key",
-                 "variant")
+                 "method, regions_gains, variant")
     assert err.problem == "unknown key"
     err = config_error(tmp_path, "s3", {"variant": 2}, mode="lockstep")
     assert (err.file, err.key) == (str(tmp_path / "one.yaml"), "processes.s3.params.variant")
     assert "must be a string" in err.problem
+    err = config_error(tmp_path, "s3", {"method": "superpixels"}, mode="lockstep")
+    assert (err.file, err.key) == (str(tmp_path / "one.yaml"), "processes.s3.params.method")
+    assert "contours" in str(err) and "s3" in str(err)
 
 
 def test_a_variant_the_gains_file_lacks_names_the_file_and_its_variants(tmp_path: Path) -> None:

@@ -32,6 +32,7 @@ from tools.experiment.courses import (
     PERCEPTION_BEAM_WIDTH_M,
     PERCEPTION_STAIRS_DEPTH_M,
     PLANNERS,
+    SEGMENTERS,
     _terrain_file,
 )
 from tools.experiment.judge import Judge, Trial
@@ -70,6 +71,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="the footstep planner: mpfc (Acosta & Posa), dcm (Xiang et al.'s "
                          "variable-timing DCM MIQP), or its ablations dcm-B (fixed step), "
                          "dcm-C (N = 2), dcm-D (no viability constraints)")
+    ap.add_argument("--segmenter", choices=SEGMENTERS, default="s3",
+                    help="with --perception, the footholds from the elevation map: s3 (S3 + "
+                         "convex decomposition) or contours (the DCM planner's front end, "
+                         "Xiang et al. Alg. 3)")
     ap.add_argument("--true-state", action="store_true",
                     help="the controllers on the sim's true pose and velocity instead of the "
                          "estimator's (the paper's GT runs: ground-truth state and terrain)")
@@ -150,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
                            args.vx, args.launch, base,
                            args.log_dir / f"trial{i}" if args.log_dir else None, size,
                            args.dashboard, args.fixed_timing, args.lateral_gain,
-                           args.true_state, args.planner)
+                           args.true_state, args.planner, args.segmenter)
             for i in range(args.trials)
         ]
     else:
@@ -158,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
             run_trial(args.name, args.duration, args.seed + i, args.dmin, args.perception,
                       args.vx, args.profile, setup=recorder, size=size,
                       fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
-                      true_state=args.true_state, planner=args.planner)
+                      true_state=args.true_state, planner=args.planner,
+                      segmenter=args.segmenter)
             for i in range(args.trials)
         ]
     if recorder is not None:
@@ -180,7 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         + (" with perception" if args.perception else " with true footholds")
         + (", the sim's true state" if args.true_state else ", the estimator's state")
         + (", Fixed-T" if args.fixed_timing else "")
-        + (f", planner {args.planner}" if args.planner != "mpfc" else ""),
+        + (f", planner {args.planner}" if args.planner != "mpfc" else "")
+        + (f", segmenter {args.segmenter}" if args.segmenter != "s3" else ""),
         "trials": len(trials),
         "success_ratio": ok / len(trials),
         "falls": sum(t.fell for t in trials),
@@ -288,7 +295,7 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                        v if name in ("depth", "width") else (args.depth or args.width),
                        fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
                        true_state=args.true_state, planner=args.planner,
-                       point=(f"{name}_m", v))
+                       segmenter=args.segmenter, point=(f"{name}_m", v))
              for v in grid for i in range(args.trials)]
     jobs = args.jobs or os.cpu_count() or 1
     print(f"sweep {args.name} {name} over {grid}: {len(specs)} trials, {jobs} at a time, "
@@ -301,6 +308,8 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         timing += ", true state"
     if args.planner != "mpfc":
         timing += f", planner {args.planner}"
+    if args.segmenter != "s3":
+        timing += f", segmenter {args.segmenter}"
     png = write_summary(rows, result, out, f"{args.name}: {len(specs) // max(len(grid), 1)} "
                         f"trials per point, {feet} footholds, {timing}", jobs)
     print_table(f"sweep {args.name} over {name}", {

@@ -48,6 +48,8 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
 
 #: ``--planner``: the MPFC, or the DCM planner (Xiang et al.) and its ablations B-D
 PLANNERS = ("mpfc", "dcm", "dcm-B", "dcm-C", "dcm-D")
+#: ``--segmenter``: S3 + convex decomposition, or the DCM planner's contour front end
+SEGMENTERS = ("s3", "contours")
 
 
 def planner_params(planner: str) -> dict[str, str]:
@@ -78,11 +80,13 @@ def _fixed_timing_gains(mpfc_gains: Path, work: Path) -> Path:
 
 def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool, work: Path,
                    mode: str | None = None, fixed_timing: bool = False,
-                   true_state: bool = False, planner: str = "mpfc") -> tuple[Path, list[str]]:
+                   true_state: bool = False, planner: str = "mpfc", segmenter: str = "s3"
+                   ) -> tuple[Path, list[str]]:
     """The experiment's profile: the base one on ``terrain``, perception joining or not, the
     MPFC's step timing optimised (Opt-T) or fixed (Fixed-T), the controllers on the
     estimator's state or (``true_state``: the paper's GT runs) on the sim's true state, and
-    the footstep planner (``PLANNERS``) in the MPFC process's place."""
+    the footstep planner (``PLANNERS``) in the MPFC process's place, and with perception the
+    foothold extraction (``SEGMENTERS``) in the S3 process's."""
     base = load_profile(base_profile)
     launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
     if perception:
@@ -97,6 +101,8 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
     doc["launch"] = launch
     doc["overrides"] = {"sim": {"params": sim_params},
                         "mpfc": {"params": {"footholds": "channel", **planner_params(planner)}}}
+    if perception:
+        doc["overrides"]["s3"] = {"params": {"method": segmenter}}
     if true_state:
         # the estimator publishes the sim's true pose and velocity of every step
         doc["overrides"]["state_estimator"] = {"params": {"truth_state": True},
@@ -113,7 +119,8 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
 
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
              work: Path, mode: str | None = None, size: float | None = None,
-             fixed_timing: bool = False, true_state: bool = False, planner: str = "mpfc"
+             fixed_timing: bool = False, true_state: bool = False, planner: str = "mpfc",
+             segmenter: str = "s3"
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float],
                         float | None]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
@@ -123,7 +130,7 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
 
     terrain = _terrain_file(name, dmin, seed, work, size)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode,
-                                       fixed_timing, true_state, planner)
+                                       fixed_timing, true_state, planner, segmenter)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
     # the foot that the controller aims within
     ter = terrain_mod.load_terrain(terrain)

@@ -41,6 +41,7 @@ class TrialSpec:
     lateral_gain: float = 0.0  # the operator's steering back onto the centre line, 1/s
     true_state: bool = False  # the controllers on the sim's true state (the paper's GT)
     planner: str = "mpfc"  # the footstep planner (tools.experiment.courses.PLANNERS)
+    segmenter: str = "s3"  # the foothold extraction with perception (courses.SEGMENTERS)
     #: the swept parameter's name and value (for the summary), e.g. ("dmin_m", 0.5)
     point: tuple[str, float] = ("", 0.0)
 
@@ -53,6 +54,8 @@ class TrialSpec:
             fields.append("true_state")
         if self.planner != "mpfc":
             fields.append(self.planner)
+        if self.segmenter != "s3":
+            fields.append(self.segmenter)
         return json.dumps(fields, sort_keys=True)
 
 
@@ -71,7 +74,8 @@ def run_spec(spec: TrialSpec) -> dict[str, Any]:
     tr: Trial = run_trial(spec.name, spec.duration_s, spec.seed, spec.dmin, spec.perception,
                           spec.vx, Path(spec.profile), size=spec.size,
                           fixed_timing=spec.fixed_timing, lateral_gain=spec.lateral_gain,
-                          true_state=spec.true_state, planner=spec.planner)
+                          true_state=spec.true_state, planner=spec.planner,
+                          segmenter=spec.segmenter)
     rec = {k: v for k, v in asdict(tr).items() if k not in ("timing", "cpu", "realtime")}
     rec.update(key=spec.key(), point=list(spec.point), worker_wall_s=time.perf_counter() - t0)
     return rec

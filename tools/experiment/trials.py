@@ -40,6 +40,7 @@ def run_trial(
     lateral_gain: float = LATERAL_GAIN,
     true_state: bool = False,
     planner: str = "mpfc",
+    segmenter: str = "s3",
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
     (or instrument) the harness's nodes before the run; ``size`` is the stairs' tread depth or
@@ -49,7 +50,8 @@ def run_trial(
         work = Path(tmp)
         _, profile, launch, footholds, ground, goal = _prepare(
             base_profile, name, dmin, seed, perception, work, size=size,
-            fixed_timing=fixed_timing, true_state=true_state, planner=planner)
+            fixed_timing=fixed_timing, true_state=true_state, planner=planner,
+            segmenter=segmenter)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
@@ -109,6 +111,7 @@ def run_live_trial(
     lateral_gain: float = LATERAL_GAIN,
     true_state: bool = False,
     planner: str = "mpfc",
+    segmenter: str = "s3",
 ) -> Trial:
     """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
@@ -122,7 +125,7 @@ def run_live_trial(
         logs.mkdir(parents=True, exist_ok=True)
         prof_path, profile, launch, footholds, ground, goal = _prepare(
             base_profile, name, dmin, seed, perception, work, mode, size, fixed_timing,
-            true_state, planner)
+            true_state, planner, segmenter)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
         judge = Judge(footholds, math.inf, ground, goal)
