@@ -188,12 +188,15 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     shallow for the foot), the CoM still moving at 0.375 m/s and no room for a braking step;
     Cassie stepped in place, toppled onto the stairs and fell (measured at 19-23 cm treads).
 
-    ``swing_side`` (+1: the swing foot is the left, -1: the right, 0: either) keeps the probes
-    across to the swing foot's side of the stance foot, ``margin_m`` and more (the MPFC's
-    crossover constraint): on a beam too narrow for the feet to pass beside each other, the
-    right foot on it and the left on the platform, probes to both sides found the beam ahead
-    of the right foot, so the gait went on, stopped at the left foot's touchdown, went on at
-    the right's, and fell (measured on a 15 cm beam)."""
+    ``swing_side`` (+1: the swing foot is the left, -1: the right, 0: either, this far to
+    either side: ``BOTH_SIDES_M``) asks for the next two steps (ours): the swing foot lands
+    ``margin_m`` (the MPFC's crossover margin) or more to its side of the stance foot, and the
+    step after lands as far back across from that. One step looked at: on a beam too narrow
+    for two feet (13-15 cm, 5-7 cm of face) the right foot found the beam ahead, the left then
+    found nothing and the stop began at the platform's edge with the CoM moving, where no
+    braking step was left; Cassie rocked there for 3 s and stepped off (measured).
+    Probed at every cm across, out to ``SIDE_PROBES_M``'s +-0.35 m (a 9 cm beam face was
+    missed between probes 10 cm apart)."""
     d = np.asarray(direction_xy, dtype=float)
     n = float(np.hypot(d[0], d[1]))
     if n < 1e-9 or not footholds:
@@ -201,18 +204,13 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     d = d / n
     side = np.array([-d[1], d[0]])
     ahead = np.asarray(AHEAD_PROBES_M)
-    a = ahead[:, None, None] * d
     across = np.asarray(SIDE_PROBES_M)
-    if swing_side:  # the swing foot's side, out to a wide step (Cassie's hips: ~0.35 m)
-        across = math.copysign(1.0, swing_side) * across[across >= margin_m - 1e-9]
-    else:
-        across = across[np.abs(across) <= BOTH_SIDES_M + 1e-9]
-    b = across[None, :, None] * side
     stance = np.asarray(stance_xy, dtype=float)[:2]
-    pts = (stance + a + b).reshape(-1, 2)
+    pts = (stance + ahead[:, None, None] * d + across[None, :, None] * side).reshape(-1, 2)
     dist = np.repeat(ahead, len(across))  # each point's distance ahead
+    lane = np.tile(np.arange(len(across)), len(ahead))  # ... and its lateral probe
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    own_end, others = 0.0, []
+    own_end, own_hits, others = 0.0, [], []
     for f in footholds:
         v = f.vertices_xy
         if len(v) == 0 or np.any(v.min(axis=0) > hi) or np.any(v.max(axis=0) < lo):
@@ -226,11 +224,22 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
             within = hit[dist[hit] <= STEP_REACH_M + 1e-9]
             if within.size:
                 own_end = max(own_end, float(dist[within].max()))
+            own_hits.append(hit)
         elif hit.size:
-            others.append(float(dist[hit].min()))
+            others.append(hit)
+    # the probes where the way goes on: the ground underfoot if it goes on for a whole step,
+    # another foothold within a step of where it ends
+    go = [h[dist[h] <= own_end + STEP_REACH_M + 1e-9] for h in others]
     if own_end >= STEP_REACH_M - 1e-9:
-        return True
-    return any(near <= own_end + STEP_REACH_M + 1e-9 for near in others)
+        go += own_hits
+    if not go:
+        return False
+    lanes = across[np.unique(lane[np.concatenate(go)])]  # lateral offsets with a way on
+    if not swing_side:
+        return bool(np.any(np.abs(lanes) <= BOTH_SIDES_M + 1e-9))
+    u = math.copysign(1.0, swing_side) * lanes  # towards the swing foot's side
+    first = u[u >= margin_m - 1e-9]
+    return bool(first.size and np.any(u <= first.max() - margin_m + 1e-9))
 
 
 class Halt:

@@ -61,3 +61,13 @@ def test_only_the_swing_foots_side_beyond_the_crossover_margin_counts() -> None:
     # a stone 30 cm to the swing side, a step ahead, is found
     assert foothold_ahead([_rect(-0.5, 0.1), _rect(0.3, 0.6, 0.25, 0.45)], (0.0, 0.0),
                           (1.0, 0.0), swing_side=1.0, margin_m=0.06)
+
+
+def test_a_beam_too_narrow_for_both_feet_stops_the_gait_before_the_platforms_edge() -> None:
+    """Two steps looked at: onto a 5 cm beam face the left foot could step, but the right
+    foot then has nowhere 6 cm to its right; on a 13 cm face both find room."""
+    platform = _rect(-1.0, 0.18, -0.7, 0.7)
+    narrow, wide = _rect(0.42, 8.0, -0.025, 0.025), _rect(0.42, 8.0, -0.065, 0.065)
+    right_foot = (-0.1, -0.13)  # 28 cm before the platform's edge, the left foot to swing
+    assert not foothold_ahead([platform, narrow], right_foot, (1.0, 0.0), 1.0, 0.06)
+    assert foothold_ahead([platform, wide], right_foot, (1.0, 0.0), 1.0, 0.06)
