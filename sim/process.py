@@ -209,6 +209,8 @@ CameraRenderParam = Literal["auto", "process", "thread", "inline", "off", False]
 class Params:
     """The sim's ``params:`` (processes.yaml, a profile's ``overrides:``)."""
 
+    #: a variant of the gains file (its ``variants:``), e.g. depth_noise; none: the top level
+    variant: str | None = None
     #: a terrain YAML file (relative to hw_config) or a generator name
     terrain: str = "flat"
     #: seed for a random terrain (stones, blocks)
