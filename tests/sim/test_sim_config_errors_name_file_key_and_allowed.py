@@ -28,7 +28,8 @@ def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("params", "message"), [
     ({"terrian": "flat"}, "params.terrian: unknown key (allowed: camera_render, drive, "
-                          "drops, holder_release, publish_footholds, push, terrain, terrain_seed, variant)"),
+                          "drops, holder_release, publish_footholds, push, terrain, terrain_seed, "
+                          "variant)"),
     ({"drive": "fast"}, "params.drive: 'fast' is not one of the allowed values "
                         "(allowed: auto, periodic, command)"),
     ({"camera_render": "never"}, "params.camera_render: 'never' is not one of the allowed "

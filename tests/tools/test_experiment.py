@@ -154,3 +154,16 @@ def test_a_fall_counts_as_stopped_only_when_the_stop_came_a_step_before_it():
     assert not Trial(**{**base, "fell": False}, halt_s=4.0).fell_while_stopped
     # a stop begun with the stance foot off the course: the fall (a foot off the beam) began it
     assert not Trial(**base, halt_s=4.0, halt_on_foothold=False).fell_while_stopped
+
+
+def test_a_robot_that_stops_at_the_start_for_want_of_footholds_stands_and_the_trial_ends():
+    """Treads of 21 cm leave no foothold for the 20 cm blade: the MPFC stops before the first
+    step and Cassie stands; 5 s of that ends the trial (nothing would change)."""
+    from runtime.config import HW_CONFIG_DIR
+    from tools.experiment.trials import STOOD_STILL_END_S, run_trial
+
+    tr = run_trial("stairs", 15.0, 0, None, False, 0.375, HW_CONFIG_DIR / "experiment.yaml",
+                   size=0.21, true_state=True)
+    assert not tr.fell and tr.footsteps == 0 and tr.halts == 1
+    assert tr.duration_s <= STOOD_STILL_END_S + 0.6
+    assert any("stood still" in n for n in tr.notes)

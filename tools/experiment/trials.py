@@ -25,6 +25,18 @@ from tools.experiment.judge import Judge, Trial, _verdict
 from tools.experiment.operator import LATERAL_GAIN, Operator
 from tools.report import analyse, load_budgets
 
+#: a trial whose robot has not taken a step and has stood this long in a stop for nothing
+#: ahead ends there: standing, nothing changes (the map, the footholds), and a perception
+#: sweep's small stones (none left after S3's erosion) spent 20 s of sim each on it
+STOOD_STILL_END_S = 5.0
+
+
+def _stood_still(planner: Any, t: float, judge: Judge) -> bool:
+    c = planner.counters()
+    since = float(c.get("halt_since_s", -1.0))
+    return (bool(c.get("halted", 0)) and since >= 0.0 and not judge.touchdowns
+            and t - since >= STOOD_STILL_END_S)
+
 
 def run_trial(
     name: str,
@@ -75,11 +87,17 @@ def run_trial(
                   disable=None, leave=False, bar_format="{l_bar}{bar}| {n:.1f}/{total} sim s "
                   "[{elapsed}<{remaining}]") as bar:
             t_us = 0
+            planner = next((b.node for b in h.bindings if b.node.name == "mpfc"), None)
             while t_us < end_us and not judge.finished():
                 nxt = min(t_us + step_us, end_us)
                 h.run_until(nxt, stop=judge.finished)
                 bar.update((nxt - t_us) / 1e6)
                 t_us = nxt
+                if planner is not None and _stood_still(planner, t_us * 1e-6, judge):
+                    trial.notes.append(f"stood still {STOOD_STILL_END_S:g} s in a stop for "
+                                       f"nothing ahead, on the ground it started on: ended "
+                                       f"at {t_us * 1e-6:.1f} s")
+                    break
         trial.wall_s = time.perf_counter() - t0
         for b in h.bindings:
             if b.node.name == "mpfc":
