@@ -30,6 +30,9 @@ class DcmParams:
     l_max_m: float = spec(0.6, lo=0.01, hi=2.0, unit="m")
     w_min_m: float = spec(0.08, lo=0.0, hi=2.0, unit="m")  # stride width bounds (19)
     w_max_m: float = spec(0.45, lo=0.01, hi=2.0, unit="m")
+    #: (16'), ours: walking forward, the DCM at a step's start no more than this behind its
+    #: stance foot (inf: off, the paper's symmetric (16) only); module problem.py
+    dcm_behind_max_m: float = spec(math.inf, lo=0.0, unit="m")
     delta_x_m: float = spec(0.04, lo=0.0, hi=1.0, unit="m")  # robustness margins of (16), (15)
     delta_y_m: float = spec(0.04, lo=0.0, hi=1.0, unit="m")
     com_height_m: float = spec(0.85, lo=0.3, hi=2.0, unit="m")  # z_c of lambda = sqrt(g / z_c)

@@ -181,6 +181,11 @@ class DcmModel:
             for k in range(1, n):  # (17): z_{k+1}^x - z_k^x <= L_max
                 rows.append(e_mat[k + 1][0] - e_mat[k][0])
                 rhs.append(p.l_max_m - (e_vec[k + 1][0] - e_vec[k][0]))
+            if inp.stride_x > 0.0 and math.isfinite(p.dcm_behind_max_m):
+                for k in range(2, n + 1):  # (16'), ours: z_k^x - p_k^x >= -behind_max
+                    sk = self._sel(k)
+                    rows.append(-(e_mat[k][0] - sk[0]))
+                    rhs.append(p.dcm_behind_max_m + e_vec[k][0])
         for k in range(1, n):  # (19)
             ax, ay = self._stride_rows(k, inp.ell)
             rows += [ax, -ax, ay, -ay]
@@ -298,6 +303,9 @@ class DcmModel:
                     ineq([(zk(k).start, sgn), (pk(k).start, -sgn)], bound)
             for k in range(1, n):  # (17)
                 ineq([(zk(k + 1).start, 1.0), (zk(k).start, -1.0)], p.l_max_m)
+            if inp.stride_x > 0.0 and math.isfinite(p.dcm_behind_max_m):
+                for k in range(2, n + 1):  # (16'), ours
+                    ineq([(zk(k).start, -1.0), (pk(k).start, 1.0)], p.dcm_behind_max_m)
         lb = np.full(nv, -np.inf)
         ub = np.full(nv, np.inf)
         lb[i_sig], ub[i_sig] = self.sigma_lo, self.sigma_hi  # (13)
