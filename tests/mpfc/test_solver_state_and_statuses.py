@@ -171,14 +171,14 @@ def test_recorded_solves_replay_to_the_same_plans(params) -> None:
 def test_a_non_finite_input_is_a_clear_error_at_once(params, bad) -> None:
     """NaN in: a ValueError naming the input, before any search (it used to spend the
     whole time budget on N = 2, or raise LinAlgError in the search on N = 3)."""
-    import time
-
     floor = Foothold.from_polygon(np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]))
     args = {"x_alip": np.zeros(4), "p_stance": np.zeros(3), "t_remaining_s": 0.2,
             "vdes": np.array((0.3, 0.0))}
     args[bad] = float("nan") if bad == "t_remaining_s" else args[bad] * np.nan
-    t0 = time.perf_counter()
+    solver = MpfcSolver(params)
+    searched = []
+    solver.search.run = lambda *a, **k: searched.append(a)  # must not be reached
     with pytest.raises(ValueError, match=bad):
-        MpfcSolver(params).solve(args["x_alip"], "left", args["p_stance"],
-                                 args["t_remaining_s"], args["vdes"], [floor])
-    assert time.perf_counter() - t0 < 0.1
+        solver.solve(args["x_alip"], "left", args["p_stance"], args["t_remaining_s"],
+                     args["vdes"], [floor])
+    assert not searched  # refused before any search (not timed: shared machines are noisy)
