@@ -46,7 +46,7 @@ from processes.dcm_planner.problem import DcmInputs, DcmModel
 from processes.footstep_search.footholds import FootholdCache, shifted_incumbent, yaw_rotation
 from processes.footstep_search.qp_engine import QpEngine
 from processes.footstep_search.search import ExactSearch
-from processes.mpfc.solver import STANCES, Instance, MpfcSolution, SupportTransfer
+from processes.mpfc.solver import MpfcSolution, SupportTransfer, checked_inputs
 from runtime.geometry import Foothold
 
 
@@ -91,19 +91,8 @@ class DcmSolver:
         """Plan from the ALIP state; see the module docstring for the frames and timing."""
         t_start = time.perf_counter()
         p = self.params
-        if self.recorder is not None:
-            self.recorder.append(Instance(
-                np.array(x_alip, dtype=float), stance, np.array(p_stance, dtype=float),
-                float(t_remaining_s), np.array(vdes, dtype=float), footholds, float(yaw)))
-        if stance not in STANCES:
-            raise ValueError(f"stance must be 'left' or 'right', got {stance!r}")
-        x = np.asarray(x_alip, dtype=float).reshape(4)
-        p_stance = np.asarray(p_stance, dtype=float).reshape(3)
-        v = np.asarray(vdes, dtype=float).reshape(2)
-        for what, val in (("x_alip", x), ("p_stance", p_stance), ("vdes", v),
-                          ("t_remaining_s", t_remaining_s), ("yaw", float(yaw))):
-            if not np.all(np.isfinite(val)):
-                raise ValueError(f"DcmSolver.solve: {what} is not finite ({val})")
+        x, p_stance, v, _ = checked_inputs("DcmSolver.solve", self.recorder, x_alip, stance,
+                                           p_stance, t_remaining_s, vdes, footholds, yaw)
         rot = yaw_rotation(yaw)
         xi = self.dcm_of(x)
         kap = self.model.kappa

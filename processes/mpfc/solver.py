@@ -87,6 +87,31 @@ class MpfcSolution:
         return self.footsteps is not None
 
 
+def checked_inputs(who: str, recorder: list | None, x_alip: np.ndarray, stance: str,
+                   p_stance: np.ndarray, t_remaining_s: float, vdes: np.ndarray,
+                   footholds: list[Foothold], yaw: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """A footstep planner's solve inputs as arrays (x, p_stance, vdes, T*), recorded as an
+    ``Instance`` when ``recorder`` is a list. A non-finite input has no optimum: a ValueError
+    naming it at once (unchecked, the search spent its whole time budget on N = 2 and raised
+    LinAlgError deep in the search on N = 3)."""
+    if recorder is not None:
+        recorder.append(Instance(
+            np.array(x_alip, dtype=float), stance, np.array(p_stance, dtype=float),
+            float(t_remaining_s), np.array(vdes, dtype=float), footholds, float(yaw)))
+    if stance not in STANCES:
+        raise ValueError(f"stance must be 'left' or 'right', got {stance!r}")
+    x = np.asarray(x_alip, dtype=float).reshape(4)
+    p = np.asarray(p_stance, dtype=float).reshape(3)
+    v = np.asarray(vdes, dtype=float).reshape(2)
+    t_star = float(t_remaining_s)
+    for what, val in (("x_alip", x), ("p_stance", p), ("vdes", v), ("t_remaining_s", t_star),
+                      ("yaw", float(yaw))):
+        if not np.all(np.isfinite(val)):
+            raise ValueError(f"{who}: {what} is not finite ({val})")
+    return x, p, v, t_star
+
+
 class MpfcSolver:
     """MPFC (15) solved to global optimality; keeps the previous solution between solves."""
 
@@ -127,22 +152,9 @@ class MpfcSolver:
         (``transfer`` is for planners without the ALIP's double stance: unused here.)"""
         t_start = time.perf_counter()
         p = self.params
-        if self.recorder is not None:
-            self.recorder.append(Instance(
-                np.array(x_alip, dtype=float), stance, np.array(p_stance, dtype=float),
-                float(t_remaining_s), np.array(vdes, dtype=float), footholds, float(yaw)))
-        if stance not in STANCES:
-            raise ValueError(f"stance must be 'left' or 'right', got {stance!r}")
-        x_c = np.asarray(x_alip, dtype=float).reshape(4)
-        p_stance = np.asarray(p_stance, dtype=float).reshape(3)
-        v = np.asarray(vdes, dtype=float).reshape(2)
-        t_star = float(t_remaining_s)
-        # a non-finite input has no optimum: say so at once (unchecked, the search spent its
-        # whole time budget on N = 2 and raised LinAlgError deep in the search on N = 3)
-        for what, val in (("x_alip", x_c), ("p_stance", p_stance), ("vdes", v),
-                          ("t_remaining_s", t_star), ("yaw", float(yaw))):
-            if not np.all(np.isfinite(val)):
-                raise ValueError(f"MpfcSolver.solve: {what} is not finite ({val})")
+        x_c, p_stance, v, t_star = checked_inputs("MpfcSolver.solve", self.recorder, x_alip,
+                                                  stance, p_stance, t_remaining_s, vdes,
+                                                  footholds, yaw)
         rot = yaw_rotation(yaw)
         world = self._world_footholds(footholds)
         lf = world.local(p_stance, yaw, p.foothold_max_count, p.foothold_max_distance_m,
