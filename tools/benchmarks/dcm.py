@@ -17,7 +17,6 @@ import argparse
 import dataclasses
 import gc
 import os
-import sys
 import time
 
 import numpy as np
@@ -36,7 +35,7 @@ from tools.benchmarks.common import (
     write_json,
 )
 from tools.benchmarks.mpfc import WARM_DT_S, WARM_PER_EPISODE, compare_gurobi
-from tools.testbed.gurobi_reference import GurobiBackend, gurobi_available
+from tools.testbed.gurobi_reference import GurobiBackend, gurobi_wanted
 from tools.testbed.mpfc_instances import random_instance
 
 DEFAULT_CONFIG = HW_CONFIG_DIR / "gains" / "dcm_planner.yaml"
@@ -127,10 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     # no time budget: every solve runs to the proven optimum, so Gurobi's can be compared
     params = dataclasses.replace(load(DcmParams, args.config), variant=args.variant,
                                  time_limit_ms=1e9)
-    use_gurobi = not args.no_gurobi and gurobi_available()
-    if not args.no_gurobi and not use_gurobi:
-        print("gurobipy not installed (or no licence): Gurobi comparison skipped",
-              file=sys.stderr)
+    use_gurobi = gurobi_wanted(args.no_gurobi)
     load_start = os.getloadavg()[0]
     t0 = time.perf_counter()
     figs = run(params, args.solves, args.seed, use_gurobi)

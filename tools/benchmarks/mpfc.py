@@ -36,7 +36,7 @@ from tools.benchmarks.common import (
     summarize,
     write_json,
 )
-from tools.testbed.gurobi_reference import GurobiBackend, gurobi_available
+from tools.testbed.gurobi_reference import GurobiBackend, gurobi_available, gurobi_wanted
 from tools.testbed.mpfc_instances import random_instance
 
 REPO = Path(__file__).resolve().parents[2]
@@ -320,10 +320,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     from runtime.params import load  # the gains file, in a column of Table V
     params = load(MpfcParams, args.config, args.variant)
-    use_gurobi = not args.no_gurobi and gurobi_available()
-    if not args.no_gurobi and not use_gurobi:
-        print("gurobipy not installed (or no licence): Gurobi comparison skipped",
-              file=sys.stderr)
+    use_gurobi = gurobi_wanted(args.no_gurobi)
     load_start = os.getloadavg()[0]
     t0 = time.perf_counter()
     figs = run(params, args.solves, args.seed, use_gurobi, max(1, args.gurobi_every))

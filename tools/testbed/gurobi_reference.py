@@ -128,3 +128,17 @@ def exhaustive_reference(d: MiqpData) -> tuple[float, tuple[int, ...] | None, in
         if status == "solved" and obj < best:
             best, best_a = obj, a
     return best, best_a, failed
+
+
+def gurobi_wanted(skip: bool) -> bool:
+    """A benchmark's Gurobi comparison: on unless ``skip`` (``--no-gurobi``) or gurobipy is
+    not there (said on stderr, so a figure's absence has a reason)."""
+    if skip:
+        return False
+    if not gurobi_available():
+        import sys
+
+        print("gurobipy not installed (or no licence): Gurobi comparison skipped",
+              file=sys.stderr)
+        return False
+    return True
