@@ -32,6 +32,8 @@ from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, GaitPhase, WalkingCo
 from .walking import STANDING as GAIT_STANDING
 
 log = logging.getLogger(__name__)
+#: the narrowest stance the hand-over to standing takes (its pose: feet 27 cm apart)
+STAND_MIN_WIDTH_M = 0.10
 
 WALKING, STANDING, SAFE = 0, 1, 2
 MODE_NAMES = {WALKING: "walking", STANDING: "standing", SAFE: "safe"}
@@ -254,7 +256,7 @@ class OscController:
             # has to bring it to rest first, by stepping)
             if (stand_now and int(plan.gait_state) not in (0, 1)
                     and t >= float(plan.prev_switch_time_s) + 0.03 and self._feet_down()
-                    and self._com_settled()):
+                    and self._feet_apart() and self._com_settled()):
                 self.mode = STANDING
                 self.standing.started = False
         return None
@@ -298,6 +300,19 @@ class OscController:
         p, v = self.model.p_contact_l, self.model.v_contact_l
         z0 = min(pt[2] for pt in p)
         return all(pt[2] - z0 < dz for pt in p) and all(abs(vv[2]) < vz for vv in v)
+
+    def _feet_apart(self, width: float = STAND_MIN_WIDTH_M) -> bool:
+        """The feet stand at least ``width`` apart across the blades (the standing controller
+        balances on the box of both feet: on a stop's feet 5 cm apart, on a stair tread, it
+        held for 2 s and then tipped over sideways, measured); narrower, the gait steps on."""
+        p = self.model.p_contact_l
+        fx, fy = p[0][0] - p[1][0], p[0][1] - p[1][1]  # the left blade, rear to front
+        n = math.hypot(fx, fy)
+        if n < 1e-6:
+            return True
+        dx = 0.5 * (p[0][0] + p[1][0] - p[2][0] - p[3][0])
+        dy = 0.5 * (p[0][1] + p[1][1] - p[2][1] - p[3][1])
+        return abs(fx * dy - fy * dx) / n >= width
 
     def _com_settled(self, margin: float = 0.02, speed: float = 0.1) -> bool:
         """The CoM can be stopped without a step: it moves slower than ``speed`` (m/s,
