@@ -120,23 +120,10 @@ class DcmSolver:
                      if prev is not None else None)
         self.engine.optimizer_s = 0.0
         res = self.search.run(qp, lf, incumbent, t_start + p.time_limit_ms * 1e-3)
-        n = self.model.F
-        sol = MpfcSolution(
-            status=res.status, footsteps=None, foothold_indices=None,
-            t_remaining_opt_s=float("nan"), first_stance_ss_duration_s=float("nan"),
-            ankle_torque_nm=float("nan"), alip_states=None, objective=res.objective,
-            solve_wall_ms=0.0, optimizer_ms=self.engine.optimizer_s * 1e3,
-            nodes_explored=res.nodes, footholds_considered=lf.count, stance=stance,
-            lower_bound=res.lower_bound)
-        if res.z is not None and res.assignment is not None:
+        sol = MpfcSolution.from_search(res, lf, self.model.F, p_stance, rot, stance,
+                                       self.engine.optimizer_s * 1e3)
+        if sol.has_plan:
             z = res.z
-            steps_local = np.zeros((n, 3))
-            steps_local[:, :2] = z[2:].reshape(n, 2)
-            a = np.array(res.assignment)
-            steps_local[:, 2] = lf.alpha[a] + np.einsum("nj,nj->n", lf.beta[a],
-                                                        steps_local[:, :2])
-            sol.footsteps = p_stance + steps_local @ rot.T
-            sol.foothold_indices = tuple(int(i) for i in lf.index[a])
             t1 = math.log(float(z[0])) / p.lam  # sigma_1 = e^{lambda T_1}
             sol.t_remaining_opt_s = max(t1 - elapsed, 0.0)
             sol.first_stance_ss_duration_s = t1

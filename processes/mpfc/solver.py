@@ -26,7 +26,7 @@ from processes.footstep_search.footholds import (
     yaw_rotation,
 )
 from processes.footstep_search.qp_engine import QpEngine
-from processes.footstep_search.search import ExactSearch
+from processes.footstep_search.search import ExactSearch, SearchResult
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.problem import MpfcModel, SolveInputs
 from runtime.geometry import Foothold
@@ -85,6 +85,31 @@ class MpfcSolution:
     def has_plan(self) -> bool:
         """True when footsteps, timing and torque are usable."""
         return self.footsteps is not None
+
+    @classmethod
+    def from_search(cls, res: SearchResult, lf: LocalFootholds, n: int, p_stance: np.ndarray,
+                    rot: np.ndarray, stance: str, optimizer_ms: float,
+                    trust_region_active: bool = False) -> MpfcSolution:
+        """A footstep planner's solution from the exact search's result: status, bounds and,
+        with an assignment, the ``n`` footsteps (``z[2:]`` in the stance frame) lifted onto
+        their footholds' planes and put in the world. Timing, torque and states are the
+        planner's to fill (NaN, None until then)."""
+        sol = cls(
+            status=res.status, footsteps=None, foothold_indices=None,
+            t_remaining_opt_s=float("nan"), first_stance_ss_duration_s=float("nan"),
+            ankle_torque_nm=float("nan"), alip_states=None, objective=res.objective,
+            solve_wall_ms=0.0, optimizer_ms=optimizer_ms, nodes_explored=res.nodes,
+            footholds_considered=lf.count, stance=stance,
+            trust_region_active=trust_region_active, lower_bound=res.lower_bound)
+        if res.z is not None and res.assignment is not None:
+            steps_local = np.zeros((n, 3))
+            steps_local[:, :2] = res.z[2:].reshape(n, 2)
+            a = np.array(res.assignment)
+            steps_local[:, 2] = lf.alpha[a] + np.einsum("nj,nj->n", lf.beta[a],
+                                                        steps_local[:, :2])
+            sol.footsteps = p_stance + steps_local @ rot.T
+            sol.foothold_indices = tuple(int(i) for i in lf.index[a])
+        return sol
 
 
 def checked_inputs(who: str, recorder: list | None, x_alip: np.ndarray, stance: str,
@@ -177,24 +202,11 @@ class MpfcSolver:
         self.engine.optimizer_s = 0.0
         deadline = t_start + p.time_limit_ms * 1e-3
         res = self.search.run(qp, lf, incumbent, deadline)
-        n = p.horizon_steps
-        sol = MpfcSolution(
-            status=res.status, footsteps=None, foothold_indices=None,
-            t_remaining_opt_s=float("nan"), first_stance_ss_duration_s=float("nan"),
-            ankle_torque_nm=float("nan"), alip_states=None, objective=res.objective,
-            solve_wall_ms=0.0, optimizer_ms=self.engine.optimizer_s * 1e3,
-            nodes_explored=res.nodes, footholds_considered=lf.count, stance=stance,
-            trust_region_active=trust_center is not None, lower_bound=res.lower_bound,
-        )
-        if res.z is not None and res.assignment is not None:
+        sol = MpfcSolution.from_search(res, lf, p.horizon_steps, p_stance, rot, stance,
+                                       self.engine.optimizer_s * 1e3,
+                                       trust_region_active=trust_center is not None)
+        if sol.has_plan:
             z = res.z
-            steps_local = np.zeros((n, 3))
-            steps_local[:, :2] = z[2:].reshape(n, 2)
-            a = np.array(res.assignment)
-            steps_local[:, 2] = lf.alpha[a] + np.einsum("nj,nj->n", lf.beta[a],
-                                                        steps_local[:, :2])
-            sol.footsteps = p_stance + steps_local @ rot.T
-            sol.foothold_indices = tuple(int(i) for i in lf.index[a])
             sol.t_remaining_opt_s = t_star + float(z[0])
             sol.first_stance_ss_duration_s = p.t_ss_s - t_star + sol.t_remaining_opt_s
             sol.ankle_torque_nm = float(z[1])
