@@ -144,9 +144,9 @@ class MpfcNode(Node):
         self.halt = Halt()
         self.stance: int | None = None  # the clock's, as of the last tick
         self.stance_pos = np.zeros(3)
-        #: the swing foot's height where it lifted off (at the stance's start, both feet down)
-        self.liftoff_z: float | None = None
-        self.liftoff_pos = np.zeros(3)  # ... and where (the previous stance foot)
+        #: where the swing foot lifted off (at the stance's start, both feet down): the
+        #: previous stance foot, and the height the reachable footholds are banded by
+        self.liftoff_pos = np.zeros(3)
         self.plan: MpfcSolution | None = None
         self.last_status = "none"
         self.solves = 0
@@ -206,7 +206,6 @@ class MpfcNode(Node):
         stance_before, self.stance = self.stance, clock.stance
         if self.stance != stance_before:  # a touchdown (or the start): both feet down
             self.liftoff_pos = self.kin.foot_points[1 - self.stance].copy()
-            self.liftoff_z = float(self.liftoff_pos[2])
         self.stance_pos = self.kin.foot_points[self.stance].copy()
         t_star = clock.remaining(t)
         x = self.kin.alip_state(self.stance_pos, yaw)
@@ -255,7 +254,8 @@ class MpfcNode(Node):
                 "another way or new footholds ahead walk on)")
 
     def _reachable_footholds(self) -> list[Foothold]:
-        return self._reachable.of(self.footholds, float(self.stance_pos[2]), self.liftoff_z)
+        return self._reachable.of(self.footholds, float(self.stance_pos[2]),
+                                 float(self.liftoff_pos[2]))
 
     # -- outputs -------------------------------------------------------------------------------
     def _publish(
