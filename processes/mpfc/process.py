@@ -29,7 +29,6 @@ import dataclasses
 import logging
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
@@ -49,7 +48,6 @@ from processes.mpfc.gait import GaitClock, Halt, MapHeight, ReachableFootholds, 
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver, SupportTransfer
 from runtime.codecs import elevation_map_from_msg, footholds_from_msg
-from runtime.config import HW_CONFIG_DIR
 from runtime.config_types import ProcessConfig, Profile
 from runtime.geometry import Foothold
 from runtime.node import Node
@@ -87,7 +85,7 @@ class Params:
     #: the footstep planner: mpfc (Acosta & Posa, the gains file) or dcm (Xiang et al.'s
     #: variable-timing DCM MIQP, ``processes.dcm_planner``; its gains in ``dcm_gains``)
     planner: str = spec("mpfc", choices=("mpfc", "dcm"))
-    #: the DCM planner's gains file, relative to hw_config/ (or absolute)
+    #: the DCM planner's gains file, relative to the profile's hw_config folder (or absolute)
     dcm_gains: str = "gains/dcm_planner.yaml"
     #: the DCM planner's ablation: A the planner, B fixed step, C N = 2, D no viability
     dcm_variant: str = spec("A", choices=("A", "B", "C", "D"))
@@ -360,8 +358,7 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: Mpfc
         gains = dataclasses.replace(gains, time_limit_ms=gains.time_limit_ms / profile.rtf)
     solver: FootstepSolver | None = None
     if params.planner == "dcm":
-        path = Path(params.dcm_gains)
-        dcm = load(DcmParams, path if path.is_absolute() else HW_CONFIG_DIR / path)
+        dcm = load(DcmParams, profile.resolve(params.dcm_gains))
         # its search's budget as the MPFC's above: none in lockstep, stretched below rtf 1
         budget = (math.inf if profile.mode == "lockstep"
                   else dcm.time_limit_ms / min(profile.rtf, 1.0))

@@ -10,7 +10,6 @@ why; nothing here raises on data.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,7 +19,6 @@ from processes.dcm_planner.regions import ContourRegions, RegionParams
 from processes.s3.params import S3Params
 from processes.s3.pipeline import STATUS_STALE, S3Pipeline, S3Result
 from runtime.codecs import elevation_map_from_msg, footholds_to_msg
-from runtime.config import HW_CONFIG_DIR
 from runtime.config_types import ProcessConfig, Profile
 from runtime.node import Node
 from runtime.params import load, spec
@@ -93,7 +91,7 @@ class Params:
     #: the foothold extraction: s3 (S3 + convex decomposition, Section VI) or contours (the
     #: DCM planner's front end, Xiang et al. Alg. 3: processes.dcm_planner.regions)
     method: str = spec("s3", choices=("s3", "contours"))
-    #: the contour front end's gains file, relative to hw_config/ (or absolute)
+    #: the contour front end's gains file, relative to the profile's hw_config folder (or absolute)
     regions_gains: str = "gains/dcm_regions.yaml"
 
 
@@ -101,7 +99,5 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: S3Pa
     """S3 from hw_config (gains: Table VIII, per variant), or the contour front end."""
     regions = None
     if params.method == "contours":
-        path = Path(params.regions_gains)
-        regions = ContourRegions(load(RegionParams,
-                                      path if path.is_absolute() else HW_CONFIG_DIR / path))
+        regions = ContourRegions(load(RegionParams, profile.resolve(params.regions_gains)))
     return S3Node(gains, regions)
