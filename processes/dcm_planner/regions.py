@@ -60,8 +60,7 @@ def steppable_mask(elevation: np.ndarray, resolution: float, p: RegionParams) ->
     """Known, gentle and locally flat cells (uint8 0/1), eroded by the margin."""
     e = np.asarray(elevation, dtype=np.float32)
     known = np.isfinite(e)
-    z = np.where(known, e, np.float32(np.nan))
-    gy, gx = np.gradient(np.nan_to_num(z, nan=0.0), resolution)
+    gy, gx = np.gradient(np.where(known, e, np.float32(0.0)), resolution)
     slope_ok = np.hypot(gx, gy) < math.tan(math.radians(p.max_slope_deg))
     big = np.float32(1e6)  # an unknown neighbour makes the span huge (finite: no overflow)
     filled_hi = np.where(known, e, -big).astype(np.float32)
