@@ -165,16 +165,24 @@ class ReachableFootholds:
 #: (a 27 cm tread less the foot leaves a 3 cm window; a 17 cm beam less the foot 9 cm, which
 #: probes 10 cm apart across missed with the foot 5 cm off its centre line: a stop on the
 #: platform's edge, measured); ahead to twice a step from the far edge of the foothold
-#: underfoot
+#: underfoot; across as far as the MPFC steps sideways on Table I's stones, from one row to
+#: the next (eroded by S3, 40-50 cm: out to 35 cm, the next stone in the swing foot's row
+#: was missed and a stop began on a 30 cm stone, measured at d_min 40 cm)
 STEP_REACH_M = 0.60
+SIDE_REACH_M = 0.50
 AHEAD_PROBES_M = tuple(np.round(np.arange(0.05, 2 * STEP_REACH_M + 0.005, 0.01), 3))
-SIDE_PROBES_M = tuple(np.round(np.arange(-0.35, 0.355, 0.01), 3))
+SIDE_PROBES_M = tuple(np.round(np.arange(-SIDE_REACH_M, SIDE_REACH_M + 0.005, 0.01), 3))
 BOTH_SIDES_M = 0.20  # (without a swing side: this far to either side)
+#: how far inside the elevation map's edge a foothold can be found: S3's margin erosion
+#: (margin_kernel_px 4 at 2.5 cm) against the unknown outside, and a stone's minimum area
+#: (0.05 m^2: 22 cm square) left inside it
+MAP_EDGE_BLIND_M = 0.25
 
 
 def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
                    direction_xy: Sequence[float], swing_side: float = 0.0,
-                   margin_m: float = 0.0) -> bool:
+                   margin_m: float = 0.0,
+                   seen: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
     """Whether the way goes on: the foothold the stance foot is on goes on for a whole step
     (``STEP_REACH_M``) along ``direction_xy``, or another foothold lies within a step of where
     it ends (of the stance foot, standing on none). Probed at ``AHEAD_PROBES_M`` along the
@@ -195,8 +203,16 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     for two feet (13-15 cm, 5-7 cm of face) the right foot found the beam ahead, the left then
     found nothing and the stop began at the platform's edge with the CoM moving, where no
     braking step was left; Cassie rocked there for 3 s and stepped off (measured).
-    Probed at every cm across, out to ``SIDE_PROBES_M``'s +-0.35 m (a 9 cm beam face was
-    missed between probes 10 cm apart)."""
+    Probed at every cm across, out to ``SIDE_REACH_M`` (a 9 cm beam face was
+    missed between probes 10 cm apart).
+
+    ``seen``: the box (lo, hi, world xy) where the footholds could show what is there (the
+    elevation map's extent less ``MAP_EDGE_BLIND_M``; None: everywhere, ground truth). Where
+    the place the way must go on (a step past the end of the foothold underfoot) lies outside
+    it, nothing found is not nothing there: True, walk on (the MPFC steps only on footholds it
+    has). With perception the map ends 1.25 m ahead of the CoM, where the second row of
+    stones was cut off: a stop began on the first stone at 0.8 m/s, the next row showed 0.1 s
+    later, and the stop on two small stones fell (measured, d_min 45 cm)."""
     d = np.asarray(direction_xy, dtype=float)
     n = float(np.hypot(d[0], d[1]))
     if n < 1e-9 or not footholds:
@@ -232,6 +248,10 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     go = [h[dist[h] <= own_end + STEP_REACH_M + 1e-9] for h in others]
     if own_end >= STEP_REACH_M - 1e-9:
         go += own_hits
+    if not go and seen is not None:
+        far = stance + min(own_end + STEP_REACH_M, float(ahead[-1])) * d
+        if np.any(far < seen[0]) or np.any(far > seen[1]):
+            return True  # not seen yet: nothing known to stop for
     if not go:
         return False
     lanes = across[np.unique(lane[np.concatenate(go)])]  # lateral offsets with a way on
@@ -264,11 +284,12 @@ class Halt:
 
     def update(self, footholds: Sequence[Foothold], stance_xy: Sequence[float],
                direction_xy: Sequence[float], swing_side: float = 0.0,
-               margin_m: float = 0.0) -> bool:
+               margin_m: float = 0.0,
+               seen: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
         """At a touchdown: the new state; True when it changed (``foothold_ahead``'s
         arguments)."""
         before = self.state
-        ahead = foothold_ahead(footholds, stance_xy, direction_xy, swing_side, margin_m)
+        ahead = foothold_ahead(footholds, stance_xy, direction_xy, swing_side, margin_m, seen)
         self._clear = self._clear + 1 if ahead else 0
         if not ahead:
             self.state = self.STOPPING
@@ -294,6 +315,16 @@ class MapHeight:
         self.grid = layers[layer]
         self.origin = np.asarray(origin_xy, dtype=float)
         self.res = float(resolution)
+
+    def seen_box(self, border_m: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The map's extent less ``border_m`` on every side (lo, hi world xy); None without
+        a map."""
+        if self.grid is None:
+            return None
+        rows, cols = self.grid.shape
+        lo = self.origin - 0.5 * self.res + border_m
+        hi = self.origin + (np.array([cols, rows]) - 0.5) * self.res - border_m
+        return lo, hi
 
     def lookup(self, xy: np.ndarray) -> float | None:
         """Median of the 3 x 3 cells around ``xy`` (NaN cells ignored), or None off the map."""

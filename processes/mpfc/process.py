@@ -44,7 +44,14 @@ from lcmtypes import (
 from processes.dcm_planner.params import DcmParams
 from processes.dcm_planner.solver import DcmSolver
 from processes.kinematics import AlipKinematics
-from processes.mpfc.gait import GaitClock, Halt, MapHeight, ReachableFootholds, within_height
+from processes.mpfc.gait import (
+    MAP_EDGE_BLIND_M,
+    GaitClock,
+    Halt,
+    MapHeight,
+    ReachableFootholds,
+    within_height,
+)
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver, SupportTransfer
 from runtime.codecs import elevation_map_from_msg, footholds_from_msg
@@ -97,8 +104,8 @@ class FootstepSolver(Protocol):
 
     def solve(self, x_alip: np.ndarray, stance: str, p_stance: np.ndarray,
               t_remaining_s: float, vdes: np.ndarray, footholds: list[Foothold],
-              yaw: float = 0.0, transfer: SupportTransfer | None = None
-              ) -> MpfcSolution: ...
+              yaw: float = 0.0, transfer: SupportTransfer | None = None,
+              stop_width_m: float | None = None) -> MpfcSolution: ...
 
     def reset(self) -> None: ...
 
@@ -215,7 +222,7 @@ class MpfcNode(Node):
         if self.stance != stance_before and self.halt.update(
                 within_height(self.footholds, float(self.stance_pos[2]), self.max_height_m),
                 self.stance_pos[:2], ahead, 1.0 if self.stance == RIGHT else -1.0,
-                p.crossover_margin_m):
+                p.crossover_margin_m, self.map.seen_box(MAP_EDGE_BLIND_M)):
             log.warning("MPFC at t=%.2f s, stance foot at (%.2f, %.2f): %s", t,
                         self.stance_pos[0], self.stance_pos[1], self._halt_text())
             stopping = self.halt.state == Halt.STOPPING
@@ -224,16 +231,19 @@ class MpfcNode(Node):
             self.halt_xy = ((float(self.stance_pos[0]), float(self.stance_pos[1])) if stopping
                             else (math.nan, math.nan))
         in_ds, _, liftoff = clock.phase(t, p.t_ds_s)
+        stopping = self.halt.state == Halt.STOPPING
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",
             self.stance_pos,
             t_star,
-            self.vdes if self.halt.state == Halt.RUNNING else np.zeros(2),
+            np.zeros(2) if stopping else self.vdes,
             self._reachable_footholds(),
             yaw=yaw,
             transfer=SupportTransfer(self.liftoff_pos, liftoff - t if in_ds else 0.0,
                                      p.t_ds_s + clock.extra_ds_s),
+            # in a stop the feet come to rest far enough apart for the OSC to stand on them
+            stop_width_m=p.stop_width_m if stopping else None,
         )
         self.solves += 1
         self.last_status = sol.status if self.halt.state == Halt.RUNNING else \

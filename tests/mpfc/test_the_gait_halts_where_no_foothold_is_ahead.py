@@ -71,3 +71,18 @@ def test_a_beam_too_narrow_for_both_feet_stops_the_gait_before_the_platforms_edg
     right_foot = (-0.1, -0.13)  # 28 cm before the platform's edge, the left foot to swing
     assert not foothold_ahead([platform, narrow], right_foot, (1.0, 0.0), 1.0, 0.06)
     assert foothold_ahead([platform, wide], right_foot, (1.0, 0.0), 1.0, 0.06)
+
+
+def test_beyond_the_maps_edge_nothing_found_is_not_a_reason_to_stop() -> None:
+    """With perception the footholds end where the elevation map does: a stone whose next row
+    lies past the map's edge walks on; the same stone with the map reaching past where the way
+    must go on stops (and ground truth, no map, stops as before)."""
+    stone = _rect(-0.15, 0.3, -0.15, 0.15)
+    lo = np.array([-1.25, -1.25])
+    assert not foothold_ahead([stone], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06)
+    assert foothold_ahead([stone], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06, (lo, np.array([0.7, 1.0])))
+    assert not foothold_ahead([stone], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06,
+                              (lo, np.array([1.2, 1.0])))
+    h = Halt()
+    assert not h.update([stone], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06, (lo, np.array([0.7, 1.0])))
+    assert h.state == Halt.RUNNING
