@@ -154,6 +154,27 @@ def test_a_fall_counts_as_stopped_only_when_the_stop_came_a_step_before_it():
     assert not Trial(**{**base, "fell": False}, halt_s=4.0).fell_while_stopped
     # a stop begun with the stance foot off the course: the fall (a foot off the beam) began it
     assert not Trial(**base, halt_s=4.0, halt_on_foothold=False).fell_while_stopped
+    # ... or with the CoM already thrown (1.3 m/s) by the step before: not the stop's fall
+    assert Trial(**base, halt_s=4.0, halt_speed_mps=0.8).fell_while_stopped
+    assert not Trial(**base, halt_s=4.0, halt_speed_mps=1.3).fell_while_stopped
+
+
+def test_the_judge_reads_the_coms_speed_at_a_given_time():
+    """``Judge.speed_at``: the horizontal CoM speed of the first ground-truth message at or
+    after the time (a stop's start), from the messages it has watched."""
+    from types import SimpleNamespace
+
+    from tools.experiment.judge import Judge
+
+    j = Judge([], walk_start_s=0.0)
+    assert j.speed_at(1.0) == 0.0
+    for k, v in enumerate((0.2, 0.5, 1.2)):
+        gt = SimpleNamespace(header=SimpleNamespace(utime=int(k * 1e6)), q=[0.0, 0.0, 1.0],
+                             com_vel=[v * 0.6, v * 0.8, -1.0], foot_contact=[True, True],
+                             foot_pos=[[0, 0, 0], [0, 0, 0]])
+        j(int(k * 1e6), gt)
+    assert abs(j.speed_at(0.5) - 0.5) < 1e-12 and abs(j.speed_at(2.0) - 1.2) < 1e-12
+    assert abs(j.speed_at(9.0) - 1.2) < 1e-12
 
 
 def test_a_robot_that_stops_at_the_start_for_want_of_footholds_stands_and_the_trial_ends():

@@ -11,6 +11,8 @@ command and no footstep outside; crossed is no fall."""
 
 from __future__ import annotations
 
+import bisect
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -26,6 +28,10 @@ SPEED_TOLERANCE = 0.15
 SPEED_FROM_S = 1.0
 GOAL_PAST_M = 0.15  # the pelvis this far onto the course's last surface: it has crossed
 HALT_BEFORE_FALL_S = 0.4  # a stop that began this long before a fall (a step) preceded it
+#: ... and with the CoM slower than this (horizontal, m/s): walking on Table I's stones at
+#: 0.375 m/s the long steps bring it to 0.8-0.9 m/s; a stop begun at 1.1-1.3 m/s came after a
+#: 0.7-1.0 m step that had already thrown the robot (measured, d_min 40-50 cm), not before
+HALT_MAX_SPEED_MPS = 1.0
 
 
 @dataclass
@@ -56,14 +62,17 @@ class Trial:
     halt_s: float = -1.0
     #: the stop began with the stance foot on a true foothold (not off the course, falling)
     halt_on_foothold: bool = True
+    #: the CoM's horizontal speed when that stop began (m/s; 0 without a stop)
+    halt_speed_mps: float = 0.0
 
     @property
     def fell_while_stopped(self) -> bool:
         """A fall in a stop the MPFC began a step or more before it (nothing ahead was
-        reachable) with the stance foot on the course, not one that the fall itself began (a
-        robot on the ground, or a foot off the beam, has nothing ahead either)."""
-        return (self.fell and self.halt_on_foothold
-                and 0.0 <= self.halt_s <= self.fall_time_s - HALT_BEFORE_FALL_S)
+        reachable) with the stance foot on the course and the CoM at a walking speed, not one
+        that the fall itself began (a robot on the ground, a foot off the beam or a CoM thrown
+        at 1.3 m/s by the step before has nothing ahead either)."""
+        return fell_in_a_stop(self.fell, self.fall_time_s, self.halt_s, self.halt_on_foothold,
+                              self.halt_speed_mps)
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops
@@ -71,6 +80,13 @@ class Trial:
     realtime: dict[str, Any] = field(default_factory=dict)  # live runs: real-time checks
     notes: list[str] = field(default_factory=list)
 
+
+
+def fell_in_a_stop(fell: bool, fall_time_s: float, halt_s: float, on_foothold: bool,
+                   halt_speed_mps: float) -> bool:
+    """``Trial.fell_while_stopped`` from its fields (also for sweep records)."""
+    return (fell and on_foothold and halt_speed_mps <= HALT_MAX_SPEED_MPS
+            and 0.0 <= halt_s <= fall_time_s - HALT_BEFORE_FALL_S)
 
 
 class Judge:
@@ -96,9 +112,19 @@ class Judge:
         self.prev_contact = [True, True]
         self.lift_t = [-1.0, -1.0]  # when each foot last left the ground
         self.touchdowns: list[tuple[float, np.ndarray]] = []
+        self._speed: list[tuple[float, float]] = []  # (t, CoM horizontal speed) per message
+
+    def speed_at(self, t: float) -> float:
+        """The CoM's horizontal speed at sim time ``t`` (the first message at or after it;
+        0 before any)."""
+        if not self._speed:
+            return 0.0
+        i = bisect.bisect_left(self._speed, (t, -math.inf))
+        return self._speed[min(i, len(self._speed) - 1)][1]
 
     def __call__(self, t_us: int, gt: Any) -> None:
         t = gt.header.utime * 1e-6
+        self._speed.append((t, math.hypot(gt.com_vel[0], gt.com_vel[1])))
         z = gt.q[2] - self.ground(gt.q[0], gt.q[1])
         self.min_z = min(self.min_z, z)
         if z < FALL_HEIGHT_M and self.fall_t is None:

@@ -134,12 +134,13 @@ def run_sweep(specs: Sequence[TrialSpec], out_dir: Path, jobs: int | None = None
 
 
 def _fell_while_stopped(r: dict[str, Any]) -> bool:
-    """``Trial.fell_while_stopped`` of a trial record (False for records made before it)."""
-    from tools.experiment.judge import HALT_BEFORE_FALL_S
+    """``Trial.fell_while_stopped`` of a trial record (False for records made before it;
+    records from before ``halt_speed_mps`` count every stop's speed as a walking one)."""
+    from tools.experiment.judge import fell_in_a_stop
 
-    halt = float(r.get("halt_s", -1.0))
-    return (bool(r["fell"]) and bool(r.get("halt_on_foothold", True))
-            and 0.0 <= halt <= float(r["fall_time_s"]) - HALT_BEFORE_FALL_S)
+    return fell_in_a_stop(bool(r["fell"]), float(r["fall_time_s"]), float(r.get("halt_s", -1.0)),
+                          bool(r.get("halt_on_foothold", True)),
+                          float(r.get("halt_speed_mps", 0.0)))
 
 
 def summarise(trials: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
