@@ -4,13 +4,15 @@ Driven by the newest elevation map; runs Stable Steppability Segmentation and th
 decomposition, and publishes the foothold set with the map's ``utime`` (so the latency from the
 depth frame to the footholds can be read from a log) and the map's sequence number. A bad map
 (empty, all NaN, stale, malformed) yields an empty or the previous set with a status that says
-why; nothing here raises on data.
+why; nothing here raises on data. With ``params.method`` ``contours`` (the DCM planner's front
+end) or ``superpixels`` (QuadPiPS' superpixel planar regions) that extraction runs in S3's
+place, on the same channels.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -18,8 +20,10 @@ from lcmtypes import elevation_map_t, foothold_set_t
 from processes.dcm_planner.regions import ContourRegions, RegionParams
 from processes.s3.params import S3Params
 from processes.s3.pipeline import STATUS_STALE, S3Pipeline, S3Result
+from processes.superpixels import SuperpixelParams, SuperpixelSegmenter
 from runtime.codecs import elevation_map_from_msg, footholds_to_msg
 from runtime.config_types import ProcessConfig, Profile
+from runtime.geometry import Foothold
 from runtime.node import Node
 from runtime.params import load, spec
 
@@ -31,6 +35,13 @@ def foothold_message(result: S3Result, utime: int, map_seq: int) -> foothold_set
                             previous=result.status == STATUS_STALE)
 
 
+class Regions(Protocol):
+    """A foothold extraction run in S3's place: one map in, its footholds out."""
+
+    def process(self, elevation: np.ndarray, resolution: float, origin_xy: np.ndarray,
+                map_time_s: float) -> list[Foothold]: ...
+
+
 class S3Node(Node):
     """Elevation map in, foothold set out."""
 
@@ -39,9 +50,12 @@ class S3Node(Node):
     outputs = {"footholds": foothold_set_t}
     trigger_role = "elevation_map"
 
-    def __init__(self, params: S3Params, regions: ContourRegions | None = None) -> None:
+    def __init__(self, params: S3Params, regions: Regions | None = None,
+                 method: str = "contours") -> None:
         self.pipeline = S3Pipeline(params)
-        self.regions = regions  # the DCM planner's front end in S3's place (params.method)
+        #: the DCM planner's front end or the superpixels in S3's place (params.method)
+        self.regions = regions
+        self.method = method
         self.last_status = "no map yet"
         self.maps = 0
 
@@ -53,7 +67,7 @@ class S3Node(Node):
             held = self.regions.process(layers["elevation"], msg.resolution,
                                         np.asarray(msg.origin, dtype=float),
                                         msg.header.utime * 1e-6)
-            self.last_status = f"ok: {len(held)} contour regions"
+            self.last_status = f"ok: {len(held)} {self.method} regions"
             ctx.publish("footholds", footholds_to_msg(
                 held, msg.header.utime, msg.header.seq, "ok" if held else "no safe terrain"))
             return
@@ -88,16 +102,23 @@ class Params:
     """S3's ``params:`` (hw_config/processes.yaml, and the profiles' overrides)."""
 
     variant: str = "simulation"  # the column of Table VIII: a variant of the gains file
-    #: the foothold extraction: s3 (S3 + convex decomposition, Section VI) or contours (the
-    #: DCM planner's front end, Xiang et al. Alg. 3: processes.dcm_planner.regions)
-    method: str = spec("s3", choices=("s3", "contours"))
+    #: the foothold extraction: s3 (S3 + convex decomposition, Section VI), contours (the
+    #: DCM planner's front end, Xiang et al. Alg. 3: processes.dcm_planner.regions) or
+    #: superpixels (QuadPiPS' superpixel planar regions: processes.superpixels)
+    method: str = spec("s3", choices=("s3", "contours", "superpixels"))
     #: the contour front end's gains file, relative to the profile's hw_config folder (or absolute)
     regions_gains: str = "gains/dcm_regions.yaml"
+    #: the superpixels' gains file, relative to the profile's hw_config folder (or absolute)
+    superpixels_gains: str = "gains/superpixels.yaml"
 
 
 def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: S3Params) -> Node:
-    """S3 from hw_config (gains: Table VIII, per variant), or the contour front end."""
-    regions = None
+    """S3 from hw_config (gains: Table VIII, per variant), or the contour front end, or the
+    superpixels."""
+    regions: Regions | None = None
     if params.method == "contours":
         regions = ContourRegions(load(RegionParams, profile.resolve(params.regions_gains)))
-    return S3Node(gains, regions)
+    elif params.method == "superpixels":
+        regions = SuperpixelSegmenter(load(SuperpixelParams,
+                                           profile.resolve(params.superpixels_gains)))
+    return S3Node(gains, regions, params.method)

@@ -73,8 +73,9 @@ def main(argv: list[str] | None = None) -> int:
                          "dcm-C (N = 2), dcm-D (no viability constraints)")
     ap.add_argument("--segmenter", choices=SEGMENTERS, default="s3",
                     help="with --perception, the footholds from the elevation map: s3 (S3 + "
-                         "convex decomposition) or contours (the DCM planner's front end, "
-                         "Xiang et al. Alg. 3)")
+                         "convex decomposition), contours (the DCM planner's front end, "
+                         "Xiang et al. Alg. 3) or superpixels (QuadPiPS' superpixel planar "
+                         "regions, Asselmeier et al. V-D/E)")
     ap.add_argument("--true-state", action="store_true",
                     help="the controllers on the sim's true pose and velocity instead of the "
                          "estimator's (the paper's GT runs: ground-truth state and terrain)")

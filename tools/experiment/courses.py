@@ -48,8 +48,9 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
 
 #: ``--planner``: the MPFC, or the DCM planner (Xiang et al.) and its ablations B-D
 PLANNERS = ("mpfc", "dcm", "dcm-B", "dcm-C", "dcm-D")
-#: ``--segmenter``: S3 + convex decomposition, or the DCM planner's contour front end
-SEGMENTERS = ("s3", "contours")
+#: ``--segmenter``: S3 + convex decomposition, the DCM planner's contour front end, or QuadPiPS'
+#: superpixel planar regions
+SEGMENTERS = ("s3", "contours", "superpixels")
 
 
 def planner_params(planner: str) -> dict[str, str]:
