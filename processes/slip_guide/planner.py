@@ -59,6 +59,10 @@ class SlipPlan:
     iterations: int = 0
     card_history: list[int] = field(default_factory=list)
     l1_history: list[float] = field(default_factory=list)
+    #: why Algorithm 1 stopped: "card" (no time step over two contacts), "iterations" (n_rw
+    #: reweightings spent), or "qp_infeasible" / "qp_failed" (a reweighted QP had no solution;
+    #: the plan is the iteration before it, as Algorithm 1 keeps alpha^{r-1})
+    stopped: str = ""
     wall_s: float = 0.0
     cpu_s: float = 0.0
     qp_wall_s: float = 0.0
@@ -161,9 +165,14 @@ class SlipPlanner:
                                                 point[usable], leg[usable], cost[usable],
                                                 alpha_prev[usable], r)
             plan.qp_wall_s += time.perf_counter() - q0
-            plan.status = status
             if status != SOLVED:
+                # a reweighting moved s~ so that the prefilter left a time step without the
+                # support it needs (measured: a chasm at k = 10): keep the last solution
+                if plan.iterations == 0:
+                    plan.status = status
+                plan.stopped = f"qp_{status}"
                 break
+            plan.status = status
             alpha = np.zeros(len(step))
             alpha[usable] = alpha_u
             plan.s, plan.v, plan.alpha, plan.leg, plan.usable = s, v, alpha, leg, usable
@@ -174,7 +183,9 @@ class SlipPlanner:
             s_tilde = s.copy()  # the better approximation of s~ (Algorithm 1's caption)
             r += 1
             if plan.card_history[-1] <= 2:
+                plan.stopped = "card"
                 break
+            plan.stopped = "iterations"
         plan.wall_s = time.perf_counter() - t0
         plan.cpu_s = time.process_time() - c0
         return plan

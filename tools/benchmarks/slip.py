@@ -90,6 +90,7 @@ def run(params: SlipParams, scenes: tuple[str, ...], pairs: list[tuple[float, in
                 planner = SlipPlanner(p)
                 wall, cpu, qp, sample, iters, card, bad, steps = [], [], [], [], [], [], [], []
                 statuses: dict[str, int] = {}
+                stops: dict[str, int] = {}
                 for trial in range(trials):
                     sc = scene(name, trial)
                     t0 = time.perf_counter()
@@ -110,6 +111,7 @@ def run(params: SlipParams, scenes: tuple[str, ...], pairs: list[tuple[float, in
                     bad.append(outside_every_foothold(sc, plan))
                     steps.append(len(assign_phases(plan, p.dt_s, p.merge_radius_m)))
                     statuses[plan.status] = statuses.get(plan.status, 0) + 1
+                    stops[plan.stopped] = stops.get(plan.stopped, 0) + 1
                     if trial == 0 and (horizon, k) == (3.0, 20):
                         drawn[name] = plan
                     bar.update(1)
@@ -130,6 +132,8 @@ def run(params: SlipParams, scenes: tuple[str, ...], pairs: list[tuple[float, in
                 figs[f"{key}_contacts_outside_footholds_count"] = int(np.sum(bad))
                 figs[f"{key}_steps_mean"] = float(np.mean(steps))
                 figs[f"{key}_status_solved_count"] = statuses.get("solved", 0)
+                for why in ("card", "iterations", "qp_infeasible", "qp_failed"):
+                    figs[f"{key}_stopped_{why}_count"] = stops.get(why, 0)
                 iters_all += iters
             figs[f"{name}_iterations_mean"] = float(np.mean(iters_all))
             figs[f"{name}_iterations_min"] = int(np.min(iters_all))
@@ -142,12 +146,15 @@ def run(params: SlipParams, scenes: tuple[str, ...], pairs: list[tuple[float, in
 def table_rows(figs: dict[str, object], scenes: tuple[str, ...],
                pairs: list[tuple[float, int]]) -> list[list[object]]:
     """One row per scene and setting: ours (median, mean +- SD, max wall; mean CPU; QP;
-    iterations) beside the paper's mean +- SD."""
+    iterations; the most contacts at a time step; why Algorithm 1 stopped: (5) met, n_rw
+    spent, a reweighted QP without a solution) beside the paper's mean +- SD."""
     rows: list[list[object]] = []
     for name in scenes:
         for horizon, k in pairs:
             key = f"{name}_T{horizon:g}s_k{k}"
             paper = PAPER_S[name].get((horizon, k))
+            qp_stops = (figs[f"{key}_stopped_qp_infeasible_count"]
+                        + figs[f"{key}_stopped_qp_failed_count"])
             rows.append([
                 name, f"{horizon:g}", k,
                 f"{figs[f'{key}_plan_wall_median_ms']:.1f}",
@@ -158,6 +165,8 @@ def table_rows(figs: dict[str, object], scenes: tuple[str, ...],
                 f"{figs[f'{key}_iterations_mean']:.2f}/{figs[f'{key}_iterations_min']}/"
                 f"{figs[f'{key}_iterations_max']}",
                 figs[f"{key}_card_max"],
+                "/".join(str(figs[f"{key}_stopped_{why}_count"]) for why in ("card", "iterations"))
+                + f"/{qp_stops}",
                 "" if paper is None else f"{paper[0] * 1e3:.1f} +- {paper[1] * 1e3:.1f}",
             ])
     return rows
@@ -271,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
           "prefilter + every QP; the paper: MOSEK, i7 3.0 GHz")
     print_columns(["scene", "T [s]", "k", "median [ms]", "mean +- SD [ms]", "max [ms]",
                    "CPU mean +- SD [ms]", "QP [ms]", "RW it avg/min/max", "card max",
-                   "paper mean +- SD [ms]"], table_rows(figs, scenes, pairs))
+                   "stop card/n_rw/QP", "paper mean +- SD [ms]"], table_rows(figs, scenes, pairs))
     print_table("Reweighting iterations per scene (QPs of Algorithm 1), ours | paper",
                 [(n, f"{figs[f'{n}_iterations_mean']:.2f}/{figs[f'{n}_iterations_min']}/"
                      f"{figs[f'{n}_iterations_max']}",
