@@ -18,6 +18,7 @@ import gc
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -183,7 +184,6 @@ def plot(figs: dict[str, object], drawn: dict[str, SlipPlan], scenes: tuple[str,
     import matplotlib.pyplot as plt
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     for i, name in enumerate(scenes):
         colour = f"C{i}"
@@ -201,10 +201,7 @@ def plot(figs: dict[str, object], drawn: dict[str, SlipPlan], scenes: tuple[str,
     ax.set_title(f"SLIP planner, Table I scenes ({trials} trials each)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    paths.append(out_dir / "solve_time_vs_horizon.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths = [_save(fig, out_dir / "solve_time_vs_horizon.png")]
 
     fig, axes = plt.subplots(2, len(drawn), figsize=(4.2 * len(drawn), 5.6), squeeze=False,
                              gridspec_kw={"height_ratios": [1.0, 1.2]})
@@ -240,11 +237,18 @@ def plot(figs: dict[str, object], drawn: dict[str, SlipPlan], scenes: tuple[str,
             top.legend(fontsize=6, loc="upper left")
     fig.suptitle("One 3 s plan per scene (k = 20): contacts and legs coloured by time step",
                  fontsize=10)
-    fig.tight_layout()
-    paths.append(out_dir / "plans.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(_save(fig, out_dir / "plans.png"))
     return paths
+
+
+def _save(fig: Any, path: Path) -> Path:
+    """Lay out, write and close ``fig``; its path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
 
 
 def main(argv: list[str] | None = None) -> int:
