@@ -13,7 +13,7 @@ from runtime.errors import ConfigError, exit_code
 from runtime.run import add_arguments as add_run_arguments
 
 BENCHMARKS = ("sim", "estimator", "mpfc", "dcm", "osc", "s3", "lcm", "launch", "bridge",
-              "segmenters")
+              "segmenters", "slip")
 
 
 def _cmd_launch(args: argparse.Namespace) -> int:
