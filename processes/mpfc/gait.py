@@ -182,7 +182,8 @@ MAP_EDGE_BLIND_M = 0.25
 def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
                    direction_xy: Sequence[float], swing_side: float = 0.0,
                    margin_m: float = 0.0,
-                   seen: tuple[np.ndarray, np.ndarray] | None = None) -> bool:
+                   seen: tuple[np.ndarray, np.ndarray] | None = None,
+                   beyond: bool = False) -> bool:
     """Whether the way goes on: the foothold the stance foot is on goes on for a whole step
     (``STEP_REACH_M``) along ``direction_xy``, or another foothold lies within a step of where
     it ends (of the stance foot, standing on none). Probed at ``AHEAD_PROBES_M`` along the
@@ -212,7 +213,13 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     it, nothing found is not nothing there: True, walk on (the MPFC steps only on footholds it
     has). With perception the map ends 1.25 m ahead of the CoM, where the second row of
     stones was cut off: a stop began on the first stone at 0.8 m/s, the next row showed 0.1 s
-    later, and the stop on two small stones fell (measured, d_min 45 cm)."""
+    later, and the stop on two small stones fell (measured, d_min 45 cm).
+
+    ``beyond`` (to leave a stop): where the way goes on by another foothold, it must go on
+    from there too (the nearest place the swing foot could land on it, the other foot
+    swinging next). Stopped on a 30 cm tread (14 cm after S3's erosion) the gait walked on to
+    the next tread, found nothing past it, stopped with the feet on two treads and fell
+    (measured with perception)."""
     d = np.asarray(direction_xy, dtype=float)
     n = float(np.hypot(d[0], d[1]))
     if n < 1e-9 or not footholds:
@@ -248,18 +255,24 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     go = [h[dist[h] <= own_end + STEP_REACH_M + 1e-9] for h in others]
     if own_end >= STEP_REACH_M - 1e-9:
         go += own_hits
-    if not go and seen is not None:
+    ok = False
+    if go:
+        lanes = across[np.unique(lane[np.concatenate(go)])]  # lateral offsets with a way on
+        if not swing_side:
+            return bool(np.any(np.abs(lanes) <= BOTH_SIDES_M + 1e-9))
+        u = math.copysign(1.0, swing_side) * lanes  # towards the swing foot's side
+        first = u[u >= margin_m - 1e-9]
+        ok = bool(first.size and np.any(u <= first.max() - margin_m + 1e-9))
+    if not ok and seen is not None:
         far = stance + min(own_end + STEP_REACH_M, float(ahead[-1])) * d
         if np.any(far < seen[0]) or np.any(far > seen[1]):
             return True  # not seen yet: nothing known to stop for
-    if not go:
-        return False
-    lanes = across[np.unique(lane[np.concatenate(go)])]  # lateral offsets with a way on
-    if not swing_side:
-        return bool(np.any(np.abs(lanes) <= BOTH_SIDES_M + 1e-9))
-    u = math.copysign(1.0, swing_side) * lanes  # towards the swing foot's side
-    first = u[u >= margin_m - 1e-9]
-    return bool(first.size and np.any(u <= first.max() - margin_m + 1e-9))
+    if not (ok and beyond) or own_end >= STEP_REACH_M - 1e-9:
+        return ok
+    probes = np.concatenate(go)
+    side_ok = math.copysign(1.0, swing_side) * across[lane[probes]] >= margin_m - 1e-9
+    landing = pts[probes[side_ok][np.argmin(dist[probes[side_ok]])]]
+    return foothold_ahead(footholds, landing, direction_xy, -swing_side, margin_m, seen)
 
 
 class Halt:
@@ -271,9 +284,10 @@ class Halt:
     hands over to its standing controller in the first double stance with the CoM at rest, as
     for the radio's stand). It goes on (``RUNNING``) once both feet in turn find a foothold
     ahead (``WALK_ON_TOUCHDOWNS`` touchdowns in a row: a command in another direction,
-    perception's new footholds). (Going on at the first, the right foot on a beam too narrow
-    for the left to pass beside it stopped, the left foot on the platform went on, and so on
-    until Cassie fell: measured on a 15 cm beam.)"""
+    perception's new footholds), and the way goes on past the next foothold too
+    (``foothold_ahead``'s ``beyond``). (Going on at the first, the right foot on a beam too
+    narrow for the left to pass beside it stopped, the left foot on the platform went on, and
+    so on until Cassie fell: measured on a 15 cm beam.)"""
 
     RUNNING, STOPPING = "running", "stopping"
     WALK_ON_TOUCHDOWNS = 2
@@ -289,7 +303,8 @@ class Halt:
         """At a touchdown: the new state; True when it changed (``foothold_ahead``'s
         arguments)."""
         before = self.state
-        ahead = foothold_ahead(footholds, stance_xy, direction_xy, swing_side, margin_m, seen)
+        ahead = foothold_ahead(footholds, stance_xy, direction_xy, swing_side, margin_m, seen,
+                               beyond=self.state == self.STOPPING)
         self._clear = self._clear + 1 if ahead else 0
         if not ahead:
             self.state = self.STOPPING

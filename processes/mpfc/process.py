@@ -243,7 +243,7 @@ class MpfcNode(Node):
             transfer=SupportTransfer(self.liftoff_pos, liftoff - t if in_ds else 0.0,
                                      p.t_ds_s + clock.extra_ds_s),
             # in a stop the feet come to rest far enough apart for the OSC to stand on them
-            stop_width_m=p.stop_width_m if stopping else None,
+            stop_width_m=p.stop_width_m if stopping and p.stop_width_m > 0.0 else None,
         )
         self.solves += 1
         self.last_status = sol.status if self.halt.state == Halt.RUNNING else \

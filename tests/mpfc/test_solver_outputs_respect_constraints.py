@@ -73,10 +73,10 @@ def test_nominal_walk_on_open_ground_steps_at_the_nominal_width(params) -> None:
 
 def test_a_stop_plans_the_feet_far_enough_apart_to_stand_where_the_footholds_allow(
         params) -> None:
-    """In a stop (``stop_width_m``) the crossover margin widens: on two stones side by side
-    the swing foot goes to the other stone, not beside the stance foot on its own (where the
-    OSC cannot stand on feet 6 cm apart); on one stone too narrow for it, the usual margin
-    still gives a plan."""
+    """In a stop with ``stop_width_m`` (14 cm here) the crossover margin widens: on two stones
+    side by side the swing foot goes to the other stone, not beside the stance foot on its own
+    (where the OSC cannot stand on feet 6 cm apart); on one stone too narrow for it, the usual
+    margin still gives a plan."""
     from runtime.geometry import Foothold
 
     def rect(x0: float, x1: float, y0: float, y1: float) -> Foothold:
@@ -92,11 +92,11 @@ def test_a_stop_plans_the_feet_far_enough_apart_to_stand_where_the_footholds_all
     walk = solver.solve(x_c, "left", stance, 0.3, np.zeros(2), [here, there])
     solver.reset()
     stop = solver.solve(x_c, "left", stance, 0.3, np.zeros(2), [here, there],
-                        stop_width_m=params.stop_width_m)
+                        stop_width_m=0.14)
     assert walk.has_plan and stop.has_plan
-    assert -walk.footsteps[0, 1] < params.stop_width_m  # nominal: beside, on its own stone
-    assert -stop.footsteps[0, 1] >= params.stop_width_m - 1e-6
+    assert -walk.footsteps[0, 1] < 0.14  # nominal: beside, on its own stone
+    assert -stop.footsteps[0, 1] >= 0.14 - 1e-6
     solver.reset()
     narrow = solver.solve(x_c, "left", stance, 0.3, np.zeros(2), [here],
-                          stop_width_m=params.stop_width_m)
+                          stop_width_m=0.14)
     assert narrow.has_plan and -narrow.footsteps[0, 1] >= params.crossover_margin_m - 1e-6

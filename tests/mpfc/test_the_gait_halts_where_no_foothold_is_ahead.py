@@ -86,3 +86,21 @@ def test_beyond_the_maps_edge_nothing_found_is_not_a_reason_to_stop() -> None:
     h = Halt()
     assert not h.update([stone], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06, (lo, np.array([0.7, 1.0])))
     assert h.state == Halt.RUNNING
+
+
+def test_a_stop_is_left_only_for_a_way_that_goes_on_past_the_next_foothold() -> None:
+    """Stopped on a stone with one more stone ahead and nothing past it: walking on would
+    stop again on that stone, so the stop holds; with a third stone past it, it walks on.
+    (Walking, one stone ahead is enough to go on.)"""
+    here, next_, last = _rect(-0.15, 0.15), _rect(0.45, 0.75), _rect(1.05, 1.35)
+    assert foothold_ahead([here, next_], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06)
+    assert not foothold_ahead([here, next_], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06, beyond=True)
+    assert foothold_ahead([here, next_, last], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06, beyond=True)
+    h = Halt()
+    assert h.update([here], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06) and h.state == Halt.STOPPING
+    for _ in range(3):
+        h.update([here, next_], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06)
+    assert h.state == Halt.STOPPING
+    for _ in range(2):
+        h.update([here, next_, last], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06)
+    assert h.state == Halt.RUNNING
