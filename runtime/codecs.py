@@ -77,6 +77,28 @@ def footholds_from_msg(msg: foothold_set_t) -> list[Foothold]:
     return [f for f in out if f is not None]
 
 
+class FootholdSetReader:
+    """The footholds of the newest foothold set on a channel: the same list object until a set
+    with a new ``header.seq`` comes (a solver's caches keyed by the list hold), and a set that
+    decodes to nothing taken only when it says it is empty (status 2), not when its polygons
+    all failed to decode."""
+
+    def __init__(self, footholds: list[Foothold] | None = None) -> None:
+        self.footholds: list[Foothold] = footholds if footholds is not None else []
+        self.seq = -1  # header.seq of the set read last
+
+    def read(self, msg: foothold_set_t | None) -> bool:
+        """Take ``msg`` if it is a new set; whether the footholds changed."""
+        if msg is None or msg.header.seq == self.seq:
+            return False
+        self.seq = msg.header.seq
+        fresh = footholds_from_msg(msg)
+        if fresh or msg.status == FOOTHOLDS_EMPTY:
+            self.footholds = fresh
+            return True
+        return False
+
+
 def _footholds_problem(footholds: Sequence[Any], what: str = "foothold") -> str | None:
     """Why a list of ``foothold_t`` is inconsistent (a polygon's half-spaces incomplete, its
     normal no direction), or None."""

@@ -65,9 +65,9 @@ from processes.mpfc.guide import GuidedFootholds, fresh
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver, SupportTransfer
 from runtime.codecs import (
+    FootholdSetReader,
     GuidePlan,
     elevation_map_from_msg,
-    footholds_from_msg,
     guide_plan_from_msg,
 )
 from runtime.config_types import ProcessConfig, Profile
@@ -171,7 +171,7 @@ class MpfcNode(Node):
         self.kin = AlipKinematics()
         self.source = source
         self.footholds = static_footholds
-        self._foothold_seq = -1
+        self._holds = FootholdSetReader()  # the channel's newest set
         self.vdes = np.array(default_velocity, dtype=float)
         self.height_lookup = height_lookup
         self.max_height_m = max_height_m
@@ -207,13 +207,9 @@ class MpfcNode(Node):
             g = inbox.latest("guide")
             if g is not None:
                 self.guide_plan = guide_plan_from_msg(g)
-        if self.source == "channel" and inbox.is_fresh("footholds"):
-            msg = inbox.latest("footholds")
-            if msg is not None and msg.header.seq != self._foothold_seq:
-                self._foothold_seq = msg.header.seq
-                fresh = footholds_from_msg(msg)
-                if fresh or msg.status == 2:
-                    self.footholds = fresh
+        if (self.source == "channel" and inbox.is_fresh("footholds")
+                and self._holds.read(inbox.latest("footholds"))):
+            self.footholds = self._holds.footholds
         if self.height_lookup and inbox.is_fresh("elevation_map"):
             m = inbox.latest("elevation_map")
             if m is not None:
@@ -227,11 +223,7 @@ class MpfcNode(Node):
         self._read_inputs(inbox)
         q = np.asarray(state.q, dtype=float)
         v = np.asarray(state.v, dtype=float)
-        if (
-            q.size != self.kin.m.nq
-            or v.size != self.kin.m.nv
-            or not (np.isfinite(q).all() and np.isfinite(v).all())
-        ):
+        if not self.kin.accepts(q, v):
             self.last_status = "bad state (NaN or wrong size): plan kept"
             self._publish(ctx, state, None, "error")
             return

@@ -36,8 +36,8 @@ from runtime.codecs import (
     GUIDE_OK,
     SIDE_LEFT,
     SIDE_RIGHT,
+    FootholdSetReader,
     GuidePlan,
-    footholds_from_msg,
     guide_plan_to_msg,
     no_guide_plan,
 )
@@ -145,8 +145,8 @@ class SlipGuideNode(Node):
         self.kin = AlipKinematics()
         self.vdes = np.array(default_velocity, dtype=float)
         self.window_s = velocity_window_s
+        self._holds = FootholdSetReader()  # the channel's newest set
         self.footholds: list[Foothold] = []
-        self.footholds_seq = -1
         self.cache = CandidateCache(params.candidate_spacing_m)
         self.last_status = "no state yet"
         self.plans = 0  # ticks with a plan
@@ -160,13 +160,8 @@ class SlipGuideNode(Node):
             cmd = inbox.latest("command")
             if cmd is not None and all(math.isfinite(x) for x in (cmd.vx, cmd.vy)):
                 self.vdes[:] = (cmd.vx, cmd.vy) if cmd.mode == 0 else (0.0, 0.0)
-        if inbox.is_fresh("footholds"):
-            msg = inbox.latest("footholds")
-            if msg is not None and msg.header.seq != self.footholds_seq:
-                self.footholds_seq = msg.header.seq
-                fresh = footholds_from_msg(msg)
-                if fresh or msg.status == 2:
-                    self.footholds = fresh
+        if inbox.is_fresh("footholds") and self._holds.read(inbox.latest("footholds")):
+            self.footholds = self._holds.footholds
 
     def tick(self, ctx: Any, inbox: Any) -> None:
         self._read_inputs(inbox)
@@ -188,8 +183,7 @@ class SlipGuideNode(Node):
         utime = state.header.utime
         q = np.asarray(state.q, dtype=float)
         v = np.asarray(state.v, dtype=float)
-        if (q.size != self.kin.m.nq or v.size != self.kin.m.nv
-                or not (np.isfinite(q).all() and np.isfinite(v).all())):
+        if not self.kin.accepts(q, v):
             return no_guide_plan(utime, "bad state (NaN or wrong size)")
         if not self.footholds:
             return no_guide_plan(utime, "no footholds yet")
@@ -214,7 +208,7 @@ class SlipGuideNode(Node):
             return no_guide_plan(utime, f"no plan: {plan.status} ({len(cands)} candidates)")
         steps = assign_phases(plan, p.dt_s, p.merge_radius_m)
         out = guide_plan(plan, steps, holds, utime, self.window_s, p.dt_s)
-        return replace(out, footholds_seq=self.footholds_seq, horizon_s=p.horizon_s,
+        return replace(out, footholds_seq=self._holds.seq, horizon_s=p.horizon_s,
                        plan_wall_ms=(time.perf_counter() - t0) * 1e3,
                        qp_solves=plan.iterations)
 
