@@ -14,6 +14,7 @@ from .elevation_map_t import elevation_map_t as elevation_map_t
 from .foothold_set_t import foothold_set_t as foothold_set_t
 from .foothold_t import foothold_t as foothold_t
 from .ground_truth_t import ground_truth_t as ground_truth_t
+from .guide_plan_t import guide_plan_t as guide_plan_t
 from .header_t import header_t as header_t
 from .loop_timing_t import loop_timing_t as loop_timing_t
 from .mpfc_debug_t import mpfc_debug_t as mpfc_debug_t

@@ -52,6 +52,11 @@ class AlipKinematics:
             self.foot_points[i] = d.xpos[body] + rot @ self._mid_local
             self.foot_points[i, 2] -= FOOT_BLADE_RADIUS
 
+    def accepts(self, q: np.ndarray, v: np.ndarray) -> bool:
+        """Whether (q, v) is a state of this model: its sizes, every number finite."""
+        return (q.size == self.m.nq and v.size == self.m.nv
+                and bool(np.isfinite(q).all() and np.isfinite(v).all()))
+
     def body_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """World position and rotation matrix of body ``name`` at the last ``update``."""
         i = self.m.body(name).id

@@ -26,9 +26,9 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from lcmtypes import elevation_map_t, foothold_set_t
+from lcmtypes import elevation_map_t, foothold_set_t, guide_plan_t
 
-from .codecs import elevation_map_problem, foothold_set_problem
+from .codecs import elevation_map_problem, foothold_set_problem, guide_plan_problem
 from .errors import ConfigError
 
 _FLOATS = ("double", "float")
@@ -40,6 +40,7 @@ Reason = str | None
 CONSISTENCY: dict[type, Callable[[Any], Reason]] = {
     elevation_map_t: elevation_map_problem,
     foothold_set_t: foothold_set_problem,
+    guide_plan_t: guide_plan_problem,
 }
 
 

@@ -21,6 +21,14 @@ tread to the next (``processes.mpfc.gait.within_height``). Where none of the rea
 footholds lies ahead within a step (the end of a course), the gait steps to a stop and stands,
 and says so (``processes.mpfc.gait.Halt``; ours): stepping on in place ended with the feet
 crossed and a fall, measured at the end of a stepping-stone course.
+
+With ``params.guide`` (ours, issue 20), the SLIP guide's plan (``guide_plan_t``, a few Hz:
+``processes.slip_guide.process``) guides the solve while it is fresh (``guide_max_age_s``):
+the reachable footholds are narrowed to those within ``guide_margin_m`` of the guide's
+next N + 1 contact regions (the stance's and the MPFC's N footsteps'), all of them where that
+leaves none, and the desired velocity -- the nominal step of (18) -- is the guide's CoM
+velocity over the MPFC's horizon (``processes.mpfc.guide``). The stop for nothing ahead looks
+at every reachable foothold, as without the guide. A radio's stand is never overridden.
 """
 
 from __future__ import annotations
@@ -37,6 +45,7 @@ from lcmtypes import (
     command_t,
     elevation_map_t,
     foothold_set_t,
+    guide_plan_t,
     mpfc_debug_t,
     mpfc_output_t,
     robot_state_t,
@@ -52,10 +61,17 @@ from processes.mpfc.gait import (
     ReachableFootholds,
     within_height,
 )
+from processes.mpfc.guide import GuidedFootholds, fresh
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver, SupportTransfer
-from runtime.codecs import elevation_map_from_msg, footholds_from_msg
+from runtime.codecs import (
+    FootholdSetReader,
+    GuidePlan,
+    elevation_map_from_msg,
+    guide_plan_from_msg,
+)
 from runtime.config_types import ProcessConfig, Profile
+from runtime.errors import ConfigError
 from runtime.geometry import Foothold
 from runtime.node import Node
 from runtime.params import load, spec
@@ -96,6 +112,12 @@ class Params:
     dcm_gains: str = "gains/dcm_planner.yaml"
     #: the DCM planner's ablation: A the planner, B fixed step, C N = 2, D no viability
     dcm_variant: str = spec("A", choices=("A", "B", "C", "D"))
+    #: follow the SLIP guide's plan (input ``guide``, module docstring); off: as without one
+    guide: bool = False
+    #: a guide plan older than this (from the state it began at) is not followed
+    guide_max_age_s: float = spec(0.6, lo=0.0, lo_open=True, hi=10.0, unit="s")
+    #: footholds within this of the guide's next contact regions are kept
+    guide_margin_m: float = spec(0.10, lo=0.0, hi=2.0, unit="m")
 
 
 class FootstepSolver(Protocol):
@@ -132,14 +154,24 @@ class MpfcNode(Node):
         height_lookup: bool,
         max_height_m: float = DEFAULT_MAX_HEIGHT_M,
         solver: FootstepSolver | None = None,
+        guide: GuidedFootholds | None = None,
     ) -> None:
         self.params = params
+        #: the SLIP guide (``Params.guide``): an input of its own, and what it narrows
+        self.guide = guide
+        if guide is not None:
+            self.inputs = {**type(self).inputs, "guide": guide_plan_t}
+        self.guide_plan: GuidePlan | None = None
+        self.standing_cmd = False  # the radio asks to stand: no guide overrides it
+        self.guided = 0  # solves with a fresh guide plan
+        self.guide_narrowed = 0  # ... of which with fewer footholds than without
+        self.guide_fallbacks = 0  # ... of which the narrowing left none and all were kept
         # (the gait clock is the MPFC's, T_ss + T_ds, whichever planner plans the steps)
         self.solver: FootstepSolver = solver if solver is not None else MpfcSolver(params)
         self.kin = AlipKinematics()
         self.source = source
         self.footholds = static_footholds
-        self._foothold_seq = -1
+        self._holds = FootholdSetReader()  # the channel's newest set
         self.vdes = np.array(default_velocity, dtype=float)
         self.height_lookup = height_lookup
         self.max_height_m = max_height_m
@@ -159,6 +191,7 @@ class MpfcNode(Node):
         self.halts = 0  # times it stopped because no foothold ahead was within a step
         self.halt_since_s = -1.0  # sim time the current stop began (-1: walking on)
         self.halt_xy = (math.nan, math.nan)  # ... and where the stance foot was then
+        self.vdes_used = self.vdes  # the desired velocity of the last solve (the guide's)
 
     # -- inputs --------------------------------------------------------------------------------
     def _read_inputs(self, inbox: Any) -> None:
@@ -169,13 +202,14 @@ class MpfcNode(Node):
                 # hands over to standing in double stance once the CoM has come to rest
                 # (planning "standing" at once left it to brake a walking robot on its feet)
                 self.vdes[:] = (cmd.vx, cmd.vy) if cmd.mode == 0 else (0.0, 0.0)
-        if self.source == "channel" and inbox.is_fresh("footholds"):
-            msg = inbox.latest("footholds")
-            if msg is not None and msg.header.seq != self._foothold_seq:
-                self._foothold_seq = msg.header.seq
-                fresh = footholds_from_msg(msg)
-                if fresh or msg.status == 2:
-                    self.footholds = fresh
+                self.standing_cmd = cmd.mode != 0
+        if self.guide is not None and inbox.is_fresh("guide"):
+            g = inbox.latest("guide")
+            if g is not None:
+                self.guide_plan = guide_plan_from_msg(g)
+        if (self.source == "channel" and inbox.is_fresh("footholds")
+                and self._holds.read(inbox.latest("footholds"))):
+            self.footholds = self._holds.footholds
         if self.height_lookup and inbox.is_fresh("elevation_map"):
             m = inbox.latest("elevation_map")
             if m is not None:
@@ -189,11 +223,7 @@ class MpfcNode(Node):
         self._read_inputs(inbox)
         q = np.asarray(state.q, dtype=float)
         v = np.asarray(state.v, dtype=float)
-        if (
-            q.size != self.kin.m.nq
-            or v.size != self.kin.m.nv
-            or not (np.isfinite(q).all() and np.isfinite(v).all())
-        ):
+        if not self.kin.accepts(q, v):
             self.last_status = "bad state (NaN or wrong size): plan kept"
             self._publish(ctx, state, None, "error")
             return
@@ -232,13 +262,14 @@ class MpfcNode(Node):
                             else (math.nan, math.nan))
         in_ds, _, liftoff = clock.phase(t, p.t_ds_s)
         stopping = self.halt.state == Halt.STOPPING
+        vdes, footholds = self._guided(t, yaw)
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",
             self.stance_pos,
             t_star,
-            np.zeros(2) if stopping else self.vdes,
-            self._reachable_footholds(),
+            np.zeros(2) if stopping else vdes,
+            footholds,
             yaw=yaw,
             transfer=SupportTransfer(self.liftoff_pos, liftoff - t if in_ds else 0.0,
                                      p.t_ds_s + clock.extra_ds_s),
@@ -264,6 +295,25 @@ class MpfcNode(Node):
     def _reachable_footholds(self) -> list[Foothold]:
         return self._reachable.of(self.footholds, float(self.stance_pos[2]),
                                  float(self.liftoff_pos[2]))
+
+    def _guided(self, t: float, yaw: float) -> tuple[np.ndarray, list[Foothold]]:
+        """The desired velocity (stance frame) and the footholds of this solve: the
+        command's and the reachable ones, or with a fresh guide plan its nominal velocity
+        and the reachable footholds it narrows to (module docstring)."""
+        reachable = self._reachable_footholds()
+        plan = self.guide_plan
+        self.vdes_used = self.vdes
+        if self.guide is None or plan is None or not fresh(plan, t, self.guide.max_age_s):
+            return self.vdes, reachable
+        self.guided += 1
+        kept = self.guide.of(reachable, plan, t)
+        self.guide_narrowed += self.guide.narrowed
+        self.guide_fallbacks += self.guide.fell_back
+        if not self.standing_cmd:
+            c, s = math.cos(yaw), math.sin(yaw)
+            vx, vy = plan.nominal_velocity  # world -> the command's frame, the pelvis yaw's
+            self.vdes_used = np.array([c * vx + s * vy, -s * vx + c * vy])
+        return self.vdes_used, kept
 
     # -- outputs -------------------------------------------------------------------------------
     def _publish(
@@ -307,7 +357,7 @@ class MpfcNode(Node):
             out.num_footsteps = len(plan.footsteps)
             out.footsteps_world = plan.footsteps.tolist()
             out.solve_status = STATUS.get(status, 3)
-        out.desired_velocity = self.vdes.tolist()
+        out.desired_velocity = self.vdes_used.tolist()
         ctx.publish("plan", out)
         dbg = mpfc_debug_t()
         dbg.header.utime = state.header.utime
@@ -337,8 +387,12 @@ class MpfcNode(Node):
     def counters(self) -> dict[str, float]:
         """Solves, failed solves, and the stops for nothing reachable ahead (``halted``: 1
         while stopping or stopped, since ``halt_since_s`` of sim time, the stance foot then
-        at ``halt_x``, ``halt_y``)."""
+        at ``halt_x``, ``halt_y``); with the guide, the solves it guided (``guided``), those
+        with fewer footholds for it (``guide_narrowed``) and those where it left none
+        (``guide_fallbacks``)."""
         return {"solves": float(self.solves), "failures": float(self.failures),
+                "guided": float(self.guided), "guide_narrowed": float(self.guide_narrowed),
+                "guide_fallbacks": float(self.guide_fallbacks),
                 "halts": float(self.halts),
                 "halted": float(self.halt.state == Halt.STOPPING),
                 "halt_since_s": self.halt_since_s,
@@ -374,6 +428,16 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: Mpfc
                   else dcm.time_limit_ms / min(profile.rtf, 1.0))
         dcm = dataclasses.replace(dcm, variant=params.dcm_variant, time_limit_ms=budget)
         solver = DcmSolver(dcm, gains.mass_kg)
+    guide = None
+    if params.guide:
+        if "guide" not in proc.inputs:
+            raise ConfigError(str(proc.source_file), f"processes.{proc.name}.params.guide",
+                              "true, but the process has no guide input",
+                              allowed="false, or inputs: {guide: guide_plan} (the SLIP "
+                                      "guide's plan, processes.slip_guide.process)")
+        # the guide's regions for the MPFC's stance and its N footsteps
+        guide = GuidedFootholds(gains.horizon_steps + 1, params.guide_margin_m,
+                                params.guide_max_age_s)
     return MpfcNode(
         gains,
         "channel" if params.footholds == "channel" else "static",
@@ -382,4 +446,5 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: Mpfc
         params.height_lookup,
         params.foothold_max_height_m,
         solver,
+        guide,
     )

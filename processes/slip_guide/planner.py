@@ -20,6 +20,7 @@ set up afresh; "the previous solution as a warm start" of III-D enters as the re
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -102,7 +103,8 @@ def reference_path(start: np.ndarray, yaw: float, speed_mps: float, params: Slip
     offs = np.linspace(-0.5 * smooth_m, 0.5 * smooth_m, 21)
     probe = xy[:, None, :] + offs[None, :, None] * heading
     z = ground(probe.reshape(-1, 2)).reshape(n + 1, len(offs))
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a probe row all over a gap: NaN
         zg = np.nanmean(np.where(np.isfinite(z), z, np.nan), axis=1)
     if np.all(np.isnan(zg)):
         raise ValueError("no ground under the whole reference path")

@@ -4,8 +4,10 @@ The same process nodes as `cassie launch` (from ``hw_config/experiment.yaml``) a
 sim-time order inside this one process, so a result depends on the seed and the code, never on
 how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth; 40 cm with
 ``--perception``, as the paper's Fig. 11), ``beam``
-(23 cm wide) and ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``), with
-ground-truth footholds from the sim, or with ``--perception`` the footholds of S3.
+(23 cm wide), ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``) and
+``chasm`` (a gap across the path between two platforms, ``--width W``, default 0.35 m), with
+ground-truth footholds from the sim, or with ``--perception`` the footholds of S3; with
+``--guide`` the SLIP guide (Bartlett & Manchester) runs beside the MPFC and guides it.
 
 Reported per trial, from the sim's ground truth: distance walked, mean forward speed (from 1 s
 after the release) against the command, falls (pelvis below 0.6 m over the terrain under it),
@@ -40,7 +42,9 @@ from tools.experiment.operator import LATERAL_GAIN, LATERAL_MAX_MPS
 from tools.experiment.trials import run_live_trial, run_trial
 from tools.report import print_cpu, print_loops, print_realtime
 
-EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks", "cubes")
+EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks", "chasm", "cubes")
+#: the parameter a ``--sweep`` varies, per experiment
+SWEEP_PARAM = {"stones": "dmin", "stairs": "depth", "beam": "width", "chasm": "width"}
 
 __all__ = ["EXPERIMENTS", "PERCEPTION_BEAM_WIDTH_M", "PERCEPTION_STAIRS_DEPTH_M", "Judge",
            "Trial", "_terrain_file", "main", "run_live_trial", "run_trial"]
@@ -62,7 +66,13 @@ def main(argv: list[str] | None = None) -> int:
                     "with --perception: the paper's Fig. 11, top and bottom)")
     ap.add_argument("--width", type=float, default=None,
                     help="beam: its width, m (default 0.23 with true footholds and 0.35 with "
-                    "--perception: the paper's Fig. 11, top and bottom)")
+                    "--perception: the paper's Fig. 11, top and bottom); chasm: the gap's "
+                    "width across the path, m (default 0.35: hw_config/terrains/chasm.yaml)")
+    ap.add_argument("--guide", action="store_true",
+                    help="the SLIP guide (Bartlett & Manchester's long-horizon planner, "
+                         "processes/slip_guide) runs too, and the MPFC follows its plan: "
+                         "footholds narrowed to its next regions, its CoM velocity as the "
+                         "nominal step")
     ap.add_argument("--perception", action="store_true", help="S3 footholds, not ground truth")
     ap.add_argument("--fixed-timing", action="store_true",
                     help="the MPFC's step-timing optimisation off: t_min = t_max = T_ss (the "
@@ -102,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
                          "report's CPU table)")
     ap.add_argument("--sweep", default=None, metavar="dmin=LO:HI:STEP",
                     help="a sweep: every value of the parameter (stones: dmin; stairs: depth; "
-                         "beam: width; "
+                         "beam, chasm: width; "
                          "A:B:STEP or A,B,C) times --trials seeds, as jobs over the cores; "
                          "resumable (finished trials are kept in OUT/trials.jsonl); writes "
                          "OUT/summary.json and OUT/summary.png (tools/experiment/sweep.py)")
@@ -126,8 +136,9 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--dmin is for the stones experiment")
     if args.depth is not None and (args.name != "stairs" or not 0.1 <= args.depth <= 2.0):
         ap.error("--depth is for the stairs experiment, 0.1 to 2.0 m")
-    if args.width is not None and (args.name != "beam" or not 0.05 <= args.width <= 2.0):
-        ap.error("--width is for the beam experiment, 0.05 to 2.0 m")
+    if args.width is not None and (args.name not in ("beam", "chasm")
+                                   or not 0.05 <= args.width <= 2.0):
+        ap.error("--width is for the beam and chasm experiments, 0.05 to 2.0 m")
     if args.duration <= 0 or args.trials < 1:
         ap.error("--duration must be > 0 and --trials >= 1")
     if args.name == "stairs" and args.perception and args.depth is None:
@@ -156,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
                            args.vx, args.launch, base,
                            args.log_dir / f"trial{i}" if args.log_dir else None, size,
                            args.dashboard, args.fixed_timing, args.lateral_gain,
-                           args.true_state, args.planner, args.segmenter)
+                           args.true_state, args.planner, args.segmenter, args.guide)
             for i in range(args.trials)
         ]
     else:
@@ -165,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
                       args.vx, args.profile, setup=recorder, size=size,
                       fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
                       true_state=args.true_state, planner=args.planner,
-                      segmenter=args.segmenter)
+                      segmenter=args.segmenter, guide=args.guide)
             for i in range(args.trials)
         ]
     if recorder is not None:
@@ -188,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
         + (", the sim's true state" if args.true_state else ", the estimator's state")
         + (", Fixed-T" if args.fixed_timing else "")
         + (f", planner {args.planner}" if args.planner != "mpfc" else "")
-        + (f", segmenter {args.segmenter}" if args.segmenter != "s3" else ""),
+        + (f", segmenter {args.segmenter}" if args.segmenter != "s3" else "")
+        + (", with the SLIP guide" if args.guide else ""),
         "trials": len(trials),
         "success_ratio": ok / len(trials),
         "falls": sum(t.fell for t in trials),
@@ -206,7 +218,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.depth is not None:
         figures["stair_depth_m"] = args.depth
     if args.width is not None:
-        figures["beam_width_m"] = args.width
+        figures[f"{args.name}_width_m"] = args.width
+    figures["guide"] = args.guide
     if args.launch:
         figures["mode"] = args.launch
         figures["description"] = f"{args.name} with cassie launch in {args.launch} mode"
@@ -279,7 +292,7 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     from tools.experiment.sweep import TrialSpec, frange, run_sweep, summarise, write_summary
 
     name, _, values = args.sweep.partition("=")
-    allowed = {"stones": "dmin", "stairs": "depth", "beam": "width"}.get(args.name)
+    allowed = SWEEP_PARAM.get(args.name)
     if name != allowed:
         ap.error(f"--sweep for {args.name}: " + (f"{allowed}=LO:HI:STEP" if allowed
                                                  else "nothing to sweep"))
@@ -296,7 +309,7 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                        v if name in ("depth", "width") else (args.depth or args.width),
                        fixed_timing=args.fixed_timing, lateral_gain=args.lateral_gain,
                        true_state=args.true_state, planner=args.planner,
-                       segmenter=args.segmenter, point=(f"{name}_m", v))
+                       segmenter=args.segmenter, guide=args.guide, point=(f"{name}_m", v))
              for v in grid for i in range(args.trials)]
     jobs = args.jobs or os.cpu_count() or 1
     print(f"sweep {args.name} {name} over {grid}: {len(specs)} trials, {jobs} at a time, "
@@ -311,6 +324,8 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         timing += f", planner {args.planner}"
     if args.segmenter != "s3":
         timing += f", segmenter {args.segmenter}"
+    if args.guide:
+        timing += ", SLIP guide"
     png = write_summary(rows, result, out, f"{args.name}: {len(specs) // max(len(grid), 1)} "
                         f"trials per point, {feet} footholds, {timing}", jobs)
     print_table(f"sweep {args.name} over {name}", {

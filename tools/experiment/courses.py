@@ -1,10 +1,11 @@
 """A trial's course: its terrain file (the paper's stairs at a tread depth, its beam at a
-width, random stepping stones of a d_min and a seed) and the experiment profile that runs the
-stack on it."""
+width, random stepping stones of a d_min and a seed, a chasm of a width) and the experiment
+profile that runs the stack on it (with the SLIP guide or without)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,19 @@ PERCEPTION_BEAM_WIDTH_M = 0.35
 #: the terrain parameter a course's ``size`` sets (Fig. 11: the stairs' tread depth, the
 #: beam's width)
 SIZE_PARAM = {"stairs": "depth", "beam": "width"}
+#: the guide process's name in processes.yaml (``--guide``)
+GUIDE_PROCESS = "slip_guide"
+
+
+def _chasm_file(width: float, work: Path) -> str:
+    """hw_config/terrains/chasm.yaml with its end platform moved for a gap of ``width``."""
+    doc = safe_load((HW_CONFIG_DIR / "terrains" / "chasm.yaml").read_text())
+    start, end = doc["boxes"]
+    near_edge = start["center"][0] + 0.5 * start["size"][0]
+    end["center"][0] = near_edge + float(width) + 0.5 * end["size"][0]
+    path = work / "chasm.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return str(path)
 
 
 def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
@@ -34,6 +48,8 @@ def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
         path = work / f"{name}.yaml"
         path.write_text(yaml.safe_dump(doc, sort_keys=False))
         return str(path)
+    if name == "chasm" and size is not None:
+        return _chasm_file(size, work)
     if name == "stones":
         path = work / "stones.yaml"
         path.write_text(
@@ -81,17 +97,21 @@ def _fixed_timing_gains(mpfc_gains: Path, work: Path) -> Path:
 
 def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool, work: Path,
                    mode: str | None = None, fixed_timing: bool = False,
-                   true_state: bool = False, planner: str = "mpfc", segmenter: str = "s3"
-                   ) -> tuple[Path, list[str]]:
+                   true_state: bool = False, planner: str = "mpfc", segmenter: str = "s3",
+                   guide: bool = False) -> tuple[Path, list[str]]:
     """The experiment's profile: the base one on ``terrain``, perception joining or not, the
     MPFC's step timing optimised (Opt-T) or fixed (Fixed-T), the controllers on the
     estimator's state or (``true_state``: the paper's GT runs) on the sim's true state, and
     the footstep planner (``PLANNERS``) in the MPFC process's place, and with perception the
-    foothold extraction (``SEGMENTERS``) in the S3 process's."""
+    foothold extraction (``SEGMENTERS``) in the S3 process's; with ``guide`` the SLIP guide
+    joins (``GUIDE_PROCESS``, on the same footholds) and the MPFC follows it."""
     base = load_profile(base_profile)
-    launch = [p for p in base.launch if perception or p not in ("perception", "s3")]
+    launch = [p for p in base.launch if (perception or p not in ("perception", "s3"))
+              and (guide or p != GUIDE_PROCESS)]
     if perception:
         launch += [p for p in ("perception", "s3") if p not in launch]
+    if guide and GUIDE_PROCESS not in launch:
+        launch.append(GUIDE_PROCESS)
     sim_params: dict[str, Any] = {"terrain": terrain, "publish_footholds": not perception}
     # depth frames only feed perception; with it, rendered inline in the harness (sim-time
     # order, deterministic), as configured otherwise
@@ -101,7 +121,8 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
         doc["mode"] = mode
     doc["launch"] = launch
     doc["overrides"] = {"sim": {"params": sim_params},
-                        "mpfc": {"params": {"footholds": "channel", **planner_params(planner)}}}
+                        "mpfc": {"params": {"footholds": "channel", **planner_params(planner),
+                                            "guide": guide}}}
     if perception:
         doc["overrides"]["s3"] = {"params": {"method": segmenter}}
     if true_state:
@@ -121,7 +142,7 @@ def _write_profile(base_profile: Path, name: str, terrain: str, perception: bool
 def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perception: bool,
              work: Path, mode: str | None = None, size: float | None = None,
              fixed_timing: bool = False, true_state: bool = False, planner: str = "mpfc",
-             segmenter: str = "s3"
+             segmenter: str = "s3", guide: bool = False
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float],
                         float | None]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
@@ -131,7 +152,7 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
 
     terrain = _terrain_file(name, dmin, seed, work, size)
     prof_path, launch = _write_profile(base_profile, name, terrain, perception, work, mode,
-                                       fixed_timing, true_state, planner, segmenter)
+                                       fixed_timing, true_state, planner, segmenter, guide)
     # a footstep is judged on the faces (less the margin), not on the footholds shrunk for
     # the foot that the controller aims within
     ter = terrain_mod.load_terrain(terrain)
@@ -142,9 +163,17 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
 
 def course_end_x(ter: Any) -> float | None:
     """Where a course ends: the near edge (x) of its last box, the far platform of stones
-    and beam or the stairs' landing; None for a terrain without boxes (flat ground) or with
-    its boxes not in a row along x (``blocks``)."""
-    if not ter.boxes or ter.name not in ("stones", "beam", "stairs"):
+    and beam, the stairs' landing or a chasm's end platform (hand-written boxes in a row
+    along x, each beginning where the one before ends or beyond); None for a terrain without
+    boxes (flat ground) or with its boxes not in a row along x (``blocks``)."""
+    if not ter.boxes:
+        return None
+    if ter.name == "boxes":
+        spans = [(b.center[0] - 0.5 * b.size[0], b.center[0] + 0.5 * b.size[0])
+                 for b in ter.boxes]
+        if len(spans) < 2 or any(b[0] < a[1] - 1e-9 for a, b in pairwise(spans)):
+            return None
+    elif ter.name not in ("stones", "beam", "stairs"):
         return None
     last = ter.boxes[-1]
     return float(last.center[0] - 0.5 * last.size[0])

@@ -45,6 +45,7 @@ class TrialSpec:
     true_state: bool = False  # the controllers on the sim's true state (the paper's GT)
     planner: str = "mpfc"  # the footstep planner (tools.experiment.courses.PLANNERS)
     segmenter: str = "s3"  # the foothold extraction with perception (courses.SEGMENTERS)
+    guide: bool = False  # the SLIP guide runs and the MPFC follows it
     #: the swept parameter's name and value (for the summary), e.g. ("dmin_m", 0.5)
     point: tuple[str, float] = ("", 0.0)
 
@@ -59,6 +60,8 @@ class TrialSpec:
             fields.append(self.planner)
         if self.segmenter != "s3":
             fields.append(self.segmenter)
+        if self.guide:
+            fields.append("guide")
         return json.dumps(fields, sort_keys=True)
 
 
@@ -78,7 +81,7 @@ def run_spec(spec: TrialSpec) -> dict[str, Any]:
                           spec.vx, Path(spec.profile), size=spec.size,
                           fixed_timing=spec.fixed_timing, lateral_gain=spec.lateral_gain,
                           true_state=spec.true_state, planner=spec.planner,
-                          segmenter=spec.segmenter)
+                          segmenter=spec.segmenter, guide=spec.guide)
     rec = {k: v for k, v in asdict(tr).items() if k not in ("timing", "cpu", "realtime")}
     rec.update(key=spec.key(), point=list(spec.point), worker_wall_s=time.perf_counter() - t0)
     return rec

@@ -14,13 +14,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from lcmtypes import ground_truth_t, robot_state_t
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
 from runtime.config import HW_CONFIG_DIR
 from runtime.harness import Binding, Harness
 from runtime.scheduling import pin_to_supervisor_host
 from tools.benchmarks.common import progress
-from tools.experiment.courses import _prepare
+from tools.experiment.courses import GUIDE_PROCESS, _prepare
 from tools.experiment.judge import Judge, Trial, _verdict
 from tools.experiment.operator import LATERAL_GAIN, Operator
 from tools.report import analyse, load_budgets
@@ -29,6 +31,26 @@ from tools.report import analyse, load_budgets
 #: ahead ends there: standing, nothing changes (the map, the footholds), and a perception
 #: sweep's small stones (none left after S3's erosion) spent 20 s of sim each on it
 STOOD_STILL_END_S = 5.0
+
+
+def guide_note(node: Any, sim_s: float) -> str:
+    """The SLIP guide's figures of a harness trial: plans, their rate in sim time, their
+    wall times (median, max) and QPs."""
+    c = node.counters()
+    ms = list(getattr(node, "plan_ms", ()))
+    plans, fails = int(c.get("plans", 0)), int(c.get("failures", 0))
+    rate = (plans + fails) / sim_s if sim_s > 0 else 0.0
+    times = (f"plan wall median {float(np.median(ms)):.0f} ms, max {max(ms):.0f} ms, "
+             f"{c.get('qp_solves', 0) / max(plans, 1):.1f} QPs a plan" if ms else "no plan")
+    return (f"guide: {plans} plans and {fails} without one in {sim_s:.1f} s of sim "
+            f"({rate:.1f} Hz); {times}; last: {node.last_status}")
+
+
+def guided_note(c: Any) -> str:
+    """The MPFC's solves the guide guided, narrowed, or left with every foothold."""
+    return (f"MPFC: {int(c['guided'])} of {int(c['solves'])} solves guided, "
+            f"{int(c.get('guide_narrowed', 0))} on fewer footholds, "
+            f"{int(c.get('guide_fallbacks', 0))} with none left by the narrowing (all kept)")
 
 
 def _stood_still(planner: Any, t: float, judge: Judge) -> bool:
@@ -53,17 +75,19 @@ def run_trial(
     true_state: bool = False,
     planner: str = "mpfc",
     segmenter: str = "s3",
+    guide: bool = False,
 ) -> Trial:
     """One trial: build the experiment profile's nodes, run, judge. ``setup`` may look at
-    (or instrument) the harness's nodes before the run; ``size`` is the stairs' tread depth or
-    the beam's width (None: its terrain file's)."""
+    (or instrument) the harness's nodes before the run; ``size`` is the stairs' tread depth,
+    the beam's width or the chasm's (None: its terrain file's); ``guide``: the SLIP guide
+    runs and the MPFC follows it (its plans and their times in the trial's notes)."""
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         _, profile, launch, footholds, ground, goal = _prepare(
             base_profile, name, dmin, seed, perception, work, size=size,
             fixed_timing=fixed_timing, true_state=true_state, planner=planner,
-            segmenter=segmenter)
+            segmenter=segmenter, guide=guide)
         h = Harness.from_profile(profile)
         gt_channel = profile.channels["ground_truth"].name
         h.add(
@@ -111,6 +135,10 @@ def run_trial(
                 if math.isfinite(hx):  # the stop began with the stance foot on the course?
                     trial.halt_on_foothold = any(f.contains_xy(hx, hy)
                                                  for f in judge.footholds)
+                if c.get("guided"):
+                    trial.notes.append(guided_note(c))
+            elif b.node.name == GUIDE_PROCESS:
+                trial.notes.append(guide_note(b.node, judge.t_last))
         h.close()
     return _verdict(trial, judge, launch)
 
@@ -132,6 +160,7 @@ def run_live_trial(
     true_state: bool = False,
     planner: str = "mpfc",
     segmenter: str = "s3",
+    guide: bool = False,
 ) -> Trial:
     """One trial with the real multi-process stack: ``cassie launch`` of the base profile in
     ``mode`` (lockstep or realtime) under the supervisor, every message logged; this process
@@ -145,7 +174,7 @@ def run_live_trial(
         logs.mkdir(parents=True, exist_ok=True)
         prof_path, profile, launch, footholds, ground, goal = _prepare(
             base_profile, name, dmin, seed, perception, work, mode, size, fixed_timing,
-            true_state, planner, segmenter)
+            true_state, planner, segmenter, guide)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
         judge = Judge(footholds, math.inf, ground, goal)
