@@ -20,7 +20,9 @@ Three ways in, all exact about rounding so that what a source computed is what g
 * ``Foothold.from_polygon(vertices_xy, normal, offset)``: corners in any order, sorted
   counter-clockwise, walls through the edges (hand-made and random footholds);
 * ``Foothold.from_ccw(vertices_xy, normal, offset)``: corners already counter-clockwise, kept
-  in their order with the plane exactly as given (S3's polygons, the sim's box tops).
+  in their order with the plane exactly as given (S3's polygons, the sim's box tops);
+  ``Foothold.many_from_ccw`` does the same for many polygons at once (the superpixels'
+  dozens a map).
 
 (``Foothold.from_vertices`` takes 3D corners, fits their plane and goes through
 ``from_polygon``.) A polygon with fewer than three distinct corners or no area is refused with
@@ -98,32 +100,68 @@ class Foothold:
         given, so the normal must already be unit length and point up (S3's fits, box tops).
         Raises ValueError for fewer than 3 corners, a repeated corner or no enclosed area."""
         v = np.array(vertices_xy, dtype=float)
-        if v.ndim != 2 or v.shape[1] != 2 or len(v) < 3 or not np.all(np.isfinite(v)):
+        if v.ndim != 2 or v.shape[1] != 2:
             raise ValueError(f"a foothold polygon needs k >= 3 finite (x, y) corners, "
                              f"got an array of shape {v.shape}")
-        n = np.array(normal, dtype=float).reshape(3)
-        if not (np.all(np.isfinite(n)) and abs(float(np.linalg.norm(n)) - 1.0) <= 1e-9
-                and n[2] > 0.0):
-            raise ValueError(f"from_ccw needs a unit normal pointing up, got {n}")
-        if not np.isfinite(offset):
-            raise ValueError(f"a foothold's plane offset must be finite, got {offset}")
-        e = np.concatenate((v[1:], v[:1])) - v
+        return cls.many_from_ccw(v, (0, len(v)), np.reshape(normal, (1, -1)), (offset,))[0]
+
+    @classmethod
+    def many_from_ccw(cls, vertices_xy: np.ndarray, starts: Sequence[int] | np.ndarray,
+                      normals: np.ndarray, offsets: Sequence[float] | np.ndarray
+                      ) -> list[Foothold]:
+        """``from_ccw`` for K polygons given back to back: polygon k's corners are
+        ``vertices_xy[starts[k]:starts[k + 1]]``, its plane ``normals[k] . p = offsets[k]``.
+
+        The same checks and rows as K calls of ``from_ccw``, each step one array operation
+        for all polygons (a segmenter's few dozen polygons a map cost ~0.1 ms each in numpy's
+        per-call overheads otherwise). Raises from_ccw's ValueError for the first polygon
+        that fails, naming it when there are several."""
+        v = np.array(vertices_xy, dtype=float)  # a copy: the footholds keep views of it
+        s = np.asarray(starts, dtype=np.int64).reshape(-1)
+        n = np.array(normals, dtype=float).reshape(-1, 3)
+        d = np.asarray(offsets, dtype=float).reshape(-1)
+        k = len(s) - 1
+        if v.ndim != 2 or v.shape[1] != 2 or s[0] != 0 or s[-1] != len(v) or len(n) != k \
+                or len(d) != k:
+            raise ValueError(f"many_from_ccw needs (N, 2) corners split by K + 1 starts from 0 "
+                             f"to N and K normals and offsets, got corners {v.shape}, "
+                             f"{len(s)} starts, {len(n)} normals, {len(d)} offsets")
+        if k == 0:
+            return []
+        sizes = np.diff(s)
+        if np.any(sizes < 3):  # checked first: the steps below need three corners each
+            bad = int(np.argmax(sizes < 3))
+            raise ValueError(f"a foothold polygon needs k >= 3 finite (x, y) corners, got an "
+                             f"array of shape {(int(sizes[bad]), 2)}{_which(bad, k)}")
+        nxt = np.arange(1, len(v) + 1)
+        nxt[s[1:] - 1] = s[:-1]  # each polygon's last corner closes on its first
+        e = v[nxt] - v
         walls = np.column_stack((e[:, 1], -e[:, 0]))  # outward for counter-clockwise corners
         length = np.linalg.norm(walls, axis=1, keepdims=True)
-        if np.any(length == 0.0):
-            raise ValueError(f"a foothold polygon has a repeated corner: {v.tolist()}")
-        if not signed_area(v) > 0.0:
-            raise ValueError(f"a foothold polygon must enclose an area counter-clockwise, "
-                             f"got corners {v.tolist()}")
+        cross = v[:, 0] * v[nxt, 1] - v[nxt, 0] * v[:, 1]
+        area = 0.5 * np.add.reduceat(cross, s[:-1])
+        finite = np.logical_and.reduceat(np.isfinite(v).all(axis=1), s[:-1])
+        unit_up = (np.isfinite(n).all(axis=1) & (np.abs(np.linalg.norm(n, axis=1) - 1.0) <= 1e-9)
+                   & (n[:, 2] > 0.0))
+        repeated = np.logical_or.reduceat(length[:, 0] == 0.0, s[:-1])
+        failing = ~finite | ~unit_up | ~np.isfinite(d) | repeated | ~(area > 0.0)
+        if failing.any():
+            bad = int(np.argmax(failing))
+            raise _ccw_error(v, s, n, d, bad, bool(unit_up[bad]), bool(repeated[bad]))
         walls /= length
         a = np.column_stack((walls, np.zeros(len(walls))))
         b = np.einsum("ij,ij->i", walls, v)
-        fh = object.__new__(cls)
-        _freeze(fh, a, b, n, float(offset))
-        v.setflags(write=False)
-        fh.__dict__["vertices_xy"] = v
-        fh.__dict__["halfspaces_xy"] = (a[:, :2], b)
-        return fh
+        out: list[Foothold] = []
+        for i in range(k):  # one polygon each: only views and the fields remain
+            lo, hi = s[i], s[i + 1]
+            fh = object.__new__(cls)
+            _freeze(fh, a[lo:hi], b[lo:hi], n[i], float(d[i]))
+            vi = v[lo:hi]
+            vi.setflags(write=False)
+            fh.__dict__["vertices_xy"] = vi
+            fh.__dict__["halfspaces_xy"] = (fh.A[:, :2], fh.b)
+            out.append(fh)
+        return out
 
     @classmethod
     def from_vertices(cls, vertices: np.ndarray) -> Foothold:
@@ -234,6 +272,30 @@ def _freeze(fh: Foothold, a: np.ndarray, b: np.ndarray, n: np.ndarray, offset: f
     object.__setattr__(fh, "b", b)
     object.__setattr__(fh, "normal", n)
     object.__setattr__(fh, "offset", offset)
+
+
+def _which(i: int, k: int) -> str:
+    """' (polygon i of k)' when a batch holds several, else nothing."""
+    return f" (polygon {i} of {k})" if k > 1 else ""
+
+
+def _ccw_error(v: np.ndarray, s: np.ndarray, n: np.ndarray, d: np.ndarray, i: int,
+               unit_up: bool, repeated: bool) -> ValueError:
+    """from_ccw's error for polygon i of a batch: its first failing check, in from_ccw's order
+    (corners, normal, offset, a repeated corner, area)."""
+    c = v[s[i]:s[i + 1]]
+    where = _which(i, len(s) - 1)
+    if not np.all(np.isfinite(c)):
+        return ValueError(f"a foothold polygon needs k >= 3 finite (x, y) corners, got an "
+                          f"array of shape {c.shape}{where}")
+    if not unit_up:
+        return ValueError(f"from_ccw needs a unit normal pointing up, got {n[i]}{where}")
+    if not np.isfinite(d[i]):
+        return ValueError(f"a foothold's plane offset must be finite, got {d[i]}{where}")
+    if repeated:
+        return ValueError(f"a foothold polygon has a repeated corner: {c.tolist()}{where}")
+    return ValueError(f"a foothold polygon must enclose an area counter-clockwise, got "
+                      f"corners {c.tolist()}{where}")
 
 
 def _convex_ccw(v: np.ndarray) -> np.ndarray:

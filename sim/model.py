@@ -77,7 +77,7 @@ def build_model(
             g.type = mujoco.mjtGeom.mjGEOM_BOX
             g.size = [0.5 * box.size[0], 0.5 * box.size[1], 0.5 * box.size[2]]
             g.pos = list(box.center)
-            g.quat = [np.cos(box.yaw / 2), 0.0, 0.0, np.sin(box.yaw / 2)]
+            g.quat = list(box.quat_wxyz)
             g.contype = 0
             g.conaffinity = 15
             g.condim = 3

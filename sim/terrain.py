@@ -7,7 +7,8 @@ with perfect terrain knowledge. A terrain file may also give the foot's size
 a foothold stands wholly on its face; this is what the paper's ground-truth footholds do, which
 "account for the width and length of the foot separately" (Section VIII-A, Fig. 12).
 Terrains come from YAML files (``hw_config/terrains/``) or from seeded generators: ``flat``,
-``stairs``, ``beam``, ``stones`` (the paper's Table I stepping stones) and ``blocks``. The
+``stairs``, ``beam``, ``stones`` (the paper's Table I stepping stones), ``blocks``, and
+QuadPiPS' ``ramped_stones`` (Table I's stones with tilted tops) and ``winding_beam``. The
 robot starts at the origin facing +x, standing at ``start_z``.
 """
 
@@ -18,6 +19,7 @@ import inspect
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -40,25 +42,90 @@ STONE_COLS = 3  # across y
 
 @dataclass(frozen=True)
 class Box:
-    """An axis-aligned-in-z box: centre (world), full side lengths, yaw about z (rad)."""
+    """A box: centre (world), full side lengths, and its attitude: yaw about z, then pitch about
+    the new y and roll about the newest x (rad; R = Rz(yaw) Ry(pitch) Rx(roll)). Untilted
+    boxes (pitch = roll = 0) stand upright with a level top; a tilted one's top is a ramp."""
 
     center: tuple[float, float, float]
     size: tuple[float, float, float]
     yaw: float = 0.0
+    pitch: float = 0.0
+    roll: float = 0.0
+
+    @property
+    def tilted(self) -> bool:
+        return self.pitch != 0.0 or self.roll != 0.0
+
+    @cached_property
+    def rotation(self) -> np.ndarray:
+        """R = Rz(yaw) Ry(pitch) Rx(roll): the box's axes (columns) in the world."""
+        cy, sy = math.cos(self.yaw), math.sin(self.yaw)
+        cp, sp = math.cos(self.pitch), math.sin(self.pitch)
+        cr, sr = math.cos(self.roll), math.sin(self.roll)
+        return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                         [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                         [-sp, cp * sr, cp * cr]])
+
+    @property
+    def quat_wxyz(self) -> tuple[float, float, float, float]:
+        """The attitude as a unit quaternion (w, x, y, z): MuJoCo's order."""
+        cy, sy = math.cos(0.5 * self.yaw), math.sin(0.5 * self.yaw)
+        cp, sp = math.cos(0.5 * self.pitch), math.sin(0.5 * self.pitch)
+        cr, sr = math.cos(0.5 * self.roll), math.sin(0.5 * self.roll)
+        return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
 
     @property
     def top_z(self) -> float:
-        return self.center[2] + 0.5 * self.size[2]
+        """Height of the top face's centre (of the whole top for an untilted box)."""
+        return self.center[2] + 0.5 * self.size[2] * float(self.rotation[2, 2])
+
+    @property
+    def top_normal(self) -> np.ndarray:
+        """The top face's unit upward normal: the box's z axis."""
+        return self.rotation[:, 2].copy()
 
     def top_corners(self, margin: float = 0.0) -> np.ndarray:
-        """The top face's corners shrunk by ``margin``, counter-clockwise from above, (4, 3)."""
+        """The top face's corners shrunk by ``margin`` (in the face), counter-clockwise from
+        above, (4, 3)."""
         hx = max(0.5 * self.size[0] - margin, 0.0)
         hy = max(0.5 * self.size[1] - margin, 0.0)
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
         local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
+        if self.tilted:
+            face = np.column_stack((local, np.full(4, 0.5 * self.size[2])))
+            return face @ self.rotation.T + np.array(self.center)
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
         rot = np.array([[c, -s], [s, c]])
         xy = local @ rot.T + np.array(self.center[:2])
         return np.column_stack([xy, np.full(4, self.top_z)])
+
+    def top_height_at(self, x: float, y: float) -> float | None:
+        """z of the top face above (x, y), None when (x, y) is not under it."""
+        if not self.tilted:
+            c, s = math.cos(self.yaw), math.sin(self.yaw)
+            dx, dy = x - self.center[0], y - self.center[1]
+            inside = (abs(c * dx + s * dy) <= 0.5 * self.size[0]
+                      and abs(-s * dx + c * dy) <= 0.5 * self.size[1])
+            return self.top_z if inside else None
+        u, v, z0 = self._top_frame
+        r = self.rotation
+        dx, dy = x - z0[0], y - z0[1]
+        a = u[0] * dx + u[1] * dy  # the face's (u, v) above (x, y): the inverse of its
+        b = v[0] * dx + v[1] * dy  # 2 x 2 horizontal map, precomputed
+        if abs(a) > 0.5 * self.size[0] or abs(b) > 0.5 * self.size[1]:
+            return None
+        return z0[2] + float(r[2, 0]) * a + float(r[2, 1]) * b
+
+    @cached_property
+    def _top_frame(self) -> tuple[tuple[float, float], tuple[float, float],
+                                  tuple[float, float, float]]:
+        """The rows of the inverse of the top face's horizontal map (its x and y axes' x, y)
+        and the face's centre: (x, y) -> the face's own (u, v) in ``top_height_at``."""
+        r = self.rotation
+        m = np.linalg.inv(r[:2, :2])
+        centre = np.array(self.center) + 0.5 * self.size[2] * r[:, 2]
+        return ((float(m[0, 0]), float(m[0, 1])), (float(m[1, 0]), float(m[1, 1])),
+                (float(centre[0]), float(centre[1]), float(centre[2])))
 
 
 @dataclass(frozen=True)
@@ -75,6 +142,9 @@ class Terrain:
     #: the footholds before they were shrunk for the foot (``foot_eroded``); empty if they
     #: were not: where a foot centre may land, as opposed to where the controller should aim
     surfaces: tuple[Foothold, ...] = ()
+    #: the course's centre line (x, y) from the start to the end, for an operator that steers
+    #: along it (``winding_beam``); empty: the x axis
+    path: tuple[tuple[float, float], ...] = ()
 
     @property
     def landing_surfaces(self) -> tuple[Foothold, ...]:
@@ -86,11 +156,9 @@ class Terrain:
         plane (-inf over a pit). For judging falls (pelvis height over the ground under it)."""
         z = self.ground_z if self.ground_z is not None else -math.inf
         for b in self.boxes:
-            c, s = math.cos(b.yaw), math.sin(b.yaw)
-            dx, dy = x - b.center[0], y - b.center[1]
-            if (abs(c * dx + s * dy) <= 0.5 * b.size[0] and abs(-s * dx + c * dy) <= 0.5 * b.size[1]
-                    and b.top_z > z):
-                z = b.top_z
+            top = b.top_height_at(x, y)
+            if top is not None and top > z:
+                z = top
         return z
 
 
@@ -107,11 +175,15 @@ def foot_eroded(terrain: Terrain, half_length: float, half_width: float) -> Terr
 
 
 def _top_foothold(box: Box, margin: float) -> Foothold:
-    """The box's top face less ``margin``, a level foothold."""
+    """The box's top face less ``margin``: a level foothold, or on a tilted box's plane."""
     if min(box.size[0], box.size[1]) <= 2.0 * margin:
         raise ValueError(f"a box of {box.size[0]} x {box.size[1]} m has no top face left "
                          f"inside a foothold margin of {margin} m")
-    return Foothold.from_ccw(box.top_corners(margin)[:, :2], (0.0, 0.0, 1.0), box.top_z)
+    corners = box.top_corners(margin)
+    if not box.tilted:
+        return Foothold.from_ccw(corners[:, :2], (0.0, 0.0, 1.0), box.top_z)
+    n = box.top_normal
+    return Foothold.from_ccw(corners[:, :2], n, float(n @ corners.mean(axis=0)))
 
 
 def _rect_foothold(x0: float, x1: float, y0: float, y1: float, z: float, margin: float) -> Foothold:
@@ -220,28 +292,123 @@ def stones(
     margin: float = 0.02,
 ) -> Terrain:
     """The paper's random stepping stones (Section VIII-A1, Table I) between two platforms."""
+    return _stepping_stones("stones", d_min, seed, platform, pit_depth, margin, 0.0)
+
+
+def ramped_stones(
+    d_min: float = 0.35,
+    seed: int = 0,
+    max_tilt_deg: float = 10.0,
+    platform: float = 1.0,
+    pit_depth: float = 0.5,
+    margin: float = 0.02,
+) -> Terrain:
+    """``stones`` (the same stones for the same d_min and seed) with each stone's top tilted by
+    a pitch and a roll drawn uniformly within +-``max_tilt_deg``, about the top's centre:
+    QuadPiPS' ramped stepping stones (Asselmeier et al., Section VIII-B, Fig. 13 g; its 10 deg
+    is their ramps' incline, VIII-C). The footholds lie on the tilted tops."""
+    return _stepping_stones("ramped_stones", d_min, seed, platform, pit_depth, margin,
+                            max_tilt_deg)
+
+
+def _stepping_stones(name: str, d_min: float, seed: int, platform: float, pit_depth: float,
+                     margin: float, max_tilt_deg: float) -> Terrain:
+    """Table I's stones between two platforms; with ``max_tilt_deg`` > 0, each top tilted by
+    (pitch, roll) drawn after the stones from the same generator."""
     rng = np.random.default_rng(seed)
     bottom = -pit_depth
     spacing = d_min + STONE_SPACING_EXTRA
     start_edge = 0.3
     first_x = start_edge + STONE_SPACING_EXTRA + d_min / 2
     samples = sample_stones(rng, d_min, first_x)
+    tilts = (rng.uniform(-max_tilt_deg, max_tilt_deg, size=(len(samples), 2))
+             if max_tilt_deg > 0.0 else np.zeros((len(samples), 2)))
     grid_width = (STONE_COLS - 1) * spacing + d_min + 0.2
     boxes = [_slab(start_edge - platform, start_edge, grid_width, 0.0, bottom)]
-    for s in samples:
+    for s, (pitch, roll) in zip(samples, np.radians(tilts), strict=True):
         top = s.offset[2]
-        boxes.append(Box(
-            center=(s.nominal_xy[0] + s.offset[0], s.nominal_xy[1] + s.offset[1],
-                    0.5 * (top + bottom)),
-            size=(s.length, s.width, top - bottom),
-        ))
+        size = (s.length, s.width, top - bottom)
+        centre = np.array((s.nominal_xy[0] + s.offset[0], s.nominal_xy[1] + s.offset[1],
+                           0.5 * (top + bottom)))
+        if max_tilt_deg > 0.0:  # about the top's centre: the box hangs from it, tilted
+            axis = Box((0.0, 0.0, 0.0), size, 0.0, float(pitch), float(roll)).top_normal
+            centre = np.array((centre[0], centre[1], top)) - 0.5 * size[2] * axis
+        boxes.append(Box(center=(float(centre[0]), float(centre[1]), float(centre[2])),
+                         size=size, pitch=float(pitch), roll=float(roll)))
     end_edge = first_x + (STONE_ROWS - 1) * spacing + d_min / 2 + STONE_SPACING_EXTRA
     boxes.append(_slab(end_edge, end_edge + platform, grid_width, 0.0, bottom))
-    params = dict(d_min=d_min, seed=seed, platform=platform, pit_depth=pit_depth, margin=margin,
-                  samples=samples)
-    return Terrain("stones", boxes=tuple(boxes),
+    params: dict[str, Any] = dict(d_min=d_min, seed=seed, platform=platform,
+                                  pit_depth=pit_depth, margin=margin, samples=samples)
+    if max_tilt_deg > 0.0:
+        params |= {"max_tilt_deg": max_tilt_deg,
+                   "tilts_deg": [(float(p), float(r)) for p, r in tilts]}
+    return Terrain(name, boxes=tuple(boxes),
                    footholds=tuple(_top_foothold(b, margin) for b in boxes),
                    ground_z=bottom, seed=seed, params=params)
+
+
+def winding_beam(
+    width: float = 0.23,
+    segments: int = 6,
+    segment_length: float = 1.0,
+    turn_min_deg: float = 20.0,
+    turn_max_deg: float = 30.0,
+    max_heading_deg: float = 30.0,
+    seed: int = 0,
+    platform: float = 1.0,
+    pit_depth: float = 0.5,
+    margin: float = 0.02,
+) -> Terrain:
+    """A beam of ``segments`` straight pieces that turn left and right, from a start platform
+    to an end platform over a pit: QuadPiPS' winding balance beam (Asselmeier et al., Section
+    VIII-B, Fig. 13 j; the paper gives no dimensions). The first piece turns off the start
+    platform's heading (+x), each next one off the one before, by a uniform draw in
+    [turn_min_deg, turn_max_deg] to a random side, the other side where that would head beyond
+    +-``max_heading_deg``. Each piece runs on past its joints far enough that the outer edges
+    of neighbours meet ((w/2) tan(turn/2); into a platform (w/2) tan|heading|): one connected
+    surface. ``path`` is its centre line, platform to platform."""
+    rng = np.random.default_rng(seed)
+    bottom = -pit_depth
+    headings: list[float] = []
+    h = 0.0
+    for _ in range(segments):
+        turn = float(rng.uniform(turn_min_deg, turn_max_deg)) * (1.0 if rng.random() < 0.5
+                                                                 else -1.0)
+        if abs(h + turn) > max_heading_deg:
+            turn = -turn
+        h += turn
+        headings.append(h)
+    joints = [np.array((0.3, 0.0))]
+    for hd in headings:
+        joints.append(joints[-1] + segment_length * np.array((math.cos(math.radians(hd)),
+                                                              math.sin(math.radians(hd)))))
+    start = _slab(-platform, 0.3, 1.5, 0.0, bottom)
+    end_x, end_y = (float(v) for v in joints[-1])
+    end = _slab(end_x, end_x + platform, 1.5, 0.0, bottom, y=end_y)
+    around = [0.0, *headings, 0.0]  # the platforms' heading either side
+    pieces = []
+    for i, hd in enumerate(headings):
+        ext = []
+        for other, platform_side in ((around[i], i == 0), (around[i + 2], i == segments - 1)):
+            d = math.radians(abs(hd - other))
+            ext.append(0.5 * width * (math.tan(d) if platform_side else math.tan(0.5 * d)))
+        u = np.array((math.cos(math.radians(hd)), math.sin(math.radians(hd))))
+        a, b = joints[i] - ext[0] * u, joints[i + 1] + ext[1] * u
+        mid = 0.5 * (a + b)
+        pieces.append(Box(center=(float(mid[0]), float(mid[1]), 0.5 * bottom),
+                          size=(float(np.linalg.norm(b - a)), width, -bottom),
+                          yaw=math.radians(hd)))
+    boxes = (start, *pieces, end)
+    path = ((-0.5, 0.0), *((float(p[0]), float(p[1])) for p in joints),
+            (end_x + platform, end_y))
+    params: dict[str, Any] = dict(
+        width=width, segments=segments, segment_length=segment_length,
+        turn_min_deg=turn_min_deg, turn_max_deg=turn_max_deg, max_heading_deg=max_heading_deg,
+        seed=seed, platform=platform, pit_depth=pit_depth, margin=margin,
+        headings_deg=headings)
+    return Terrain("winding_beam", boxes=boxes,
+                   footholds=tuple(_top_foothold(b, margin) for b in boxes),
+                   ground_z=bottom, seed=seed, params=params, path=path)
 
 
 def blocks(
@@ -297,6 +464,7 @@ def from_boxes(
 #: generator name -> (function, parameter defaults with their types)
 GENERATORS: dict[str, Callable[..., Terrain]] = {
     "flat": flat, "stairs": stairs, "beam": beam, "stones": stones, "blocks": blocks,
+    "ramped_stones": ramped_stones, "winding_beam": winding_beam,
 }
 
 
@@ -314,8 +482,8 @@ def generate(name: str, foot_half_size: tuple[float, float] = (0.0, 0.0),
 # their defaults the generator's own).
 
 #: generator parameters that are integers, and those that may be zero or negative
-_INT_PARAMS = {"count", "seed"}
-_MAY_BE_ZERO_OR_NEG = {"seed", "max_yaw_deg", "margin", "start_length"}
+_INT_PARAMS = {"count", "seed", "segments"}
+_MAY_BE_ZERO_OR_NEG = {"seed", "max_yaw_deg", "margin", "start_length", "turn_min_deg"}
 TERRAIN_NAMES = (*GENERATORS, "boxes")
 
 
@@ -336,6 +504,8 @@ class BoxSpec:
     center: tuple[float, float, float] = spec(unit="m")  # (required)
     size: tuple[float, float, float] = spec(lo=0.0, lo_open=True, unit="m")  # (required)
     yaw_deg: float = spec(0.0, unit="deg")
+    pitch_deg: float = spec(0.0, lo=-60.0, hi=60.0, unit="deg")  # a ramp (Box's attitude)
+    roll_deg: float = spec(0.0, lo=-60.0, hi=60.0, unit="deg")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -376,6 +546,34 @@ def _blocks_check(self: Any) -> None:
                           f"(0.0, {self.size_max}]")
 
 
+def _ramped_stones_check(self: Any) -> None:
+    """``ramped_stones``' params: a tilt a foot can stand on."""
+    if not self.max_tilt_deg <= 30.0:
+        raise ConfigError("<Ramped_stonesParams>", "max_tilt_deg",
+                          f"{self.max_tilt_deg} deg is steeper than a foot holds",
+                          "(0, 30] deg")
+
+
+def _winding_beam_check(self: Any) -> None:
+    """``winding_beam``' params: turns a heading within +-max_heading_deg can always take."""
+    if not 0.0 <= self.turn_min_deg <= self.turn_max_deg:
+        raise ConfigError("<Winding_beamParams>", "turn_min_deg",
+                          f"{self.turn_min_deg} is not within [0, turn_max_deg "
+                          f"{self.turn_max_deg}]", f"[0, {self.turn_max_deg}] deg")
+    if not (self.turn_max_deg <= 2.0 * self.max_heading_deg and self.max_heading_deg < 90.0):
+        raise ConfigError("<Winding_beamParams>", "max_heading_deg",
+                          f"{self.max_heading_deg} deg: a turn of turn_max_deg "
+                          f"{self.turn_max_deg} must fit within +-max_heading_deg either way",
+                          f"[{0.5 * self.turn_max_deg}, 90) deg")
+
+
+#: generator name -> the check of its params beyond each value's range
+_PARAMS_CHECKS: dict[str, Callable[[Any], None]] = {
+    "blocks": _blocks_check, "ramped_stones": _ramped_stones_check,
+    "winding_beam": _winding_beam_check,
+}
+
+
 def _kwargs(fn: Callable[..., Terrain]) -> dict[str, Any]:
     """A generator's keyword arguments and their defaults."""
     return {n: p.default for n, p in inspect.signature(fn).parameters.items()}
@@ -385,7 +583,7 @@ def _params_class(name: str, fn: Callable[..., Terrain]) -> type:
     """A frozen dataclass of ``fn``'s keyword arguments but ``margin`` (``foothold_margin``)
     and ``seed`` (a key of the file's own)."""
     args = [_param_field(n, d) for n, d in _kwargs(fn).items() if n not in ("margin", "seed")]
-    ns = {"__post_init__": _blocks_check} if name == "blocks" else {}
+    ns = {"__post_init__": _PARAMS_CHECKS[name]} if name in _PARAMS_CHECKS else {}
     return dataclasses.make_dataclass(f"{name.capitalize()}Params", args, frozen=True,
                                       namespace=ns)
 
@@ -424,12 +622,14 @@ def load_terrain(path: str | Path) -> Terrain:
     name = read(TerrainFile, {k: v for k, v in doc.items() if k == "terrain"}, file).terrain
     if name == "boxes":
         b = read(BoxesFile, doc, file)
-        boxes = [Box(x.center, x.size, math.radians(x.yaw_deg)) for x in b.boxes]
+        boxes = [Box(x.center, x.size, math.radians(x.yaw_deg), math.radians(x.pitch_deg),
+                     math.radians(x.roll_deg)) for x in b.boxes]
         terrain = from_boxes(boxes, ground_z=b.ground_z, start_z=b.start_z,
                              margin=b.foothold_margin)
         return foot_eroded(terrain, *b.foot_half_size)
     if "seed" in doc and "seed" not in _kwargs(GENERATORS[name]):
-        raise ConfigError(file, "seed", f"terrain {name!r} is not random", "stones, blocks")
+        random = [n for n, fn in GENERATORS.items() if "seed" in _kwargs(fn)]
+        raise ConfigError(file, "seed", f"terrain {name!r} is not random", ", ".join(random))
     g = read(GENERATED_FILES[name], doc, file)
     kwargs = {f.name: getattr(g.params, f.name) for f in dataclasses.fields(g.params)}
     if hasattr(g, "seed"):

@@ -28,8 +28,10 @@ Where this departs from the paper, and why:
 * A hull that covers an unusable cell (unknown, unhealthy or unsteppable: e.g. the gap inside a
   U-shaped cluster) is cut, one half-plane per such cell, until it covers none (at most
   ``max_cuts``, else dropped): the MPFC takes every point of a foothold as safe.
-* The hull is OpenCV's (Sklansky's algorithm, ``processes.s3.decomposition.convex_hull``), not
-  a Graham scan: the same hull of the same points.
+* The hull is Andrew's monotone chain, not a Graham scan: the same hull of the same points.
+  The regions stage (projection, hull, cuts) runs for all clusters in one numba call
+  (``_polygons``) and the footholds are made in one batch (``Foothold.many_from_ccw``): it was
+  Python once per cluster, most of a map's time (docs/reports/segmenters.md).
 """
 
 from __future__ import annotations
@@ -43,14 +45,18 @@ import numba
 import numpy as np
 
 from processes.dcm_planner.regions import RegionParams, steppable_mask
-from processes.s3.decomposition import clip_halfplane, convex_hull, depth_inside
 from processes.superpixels.params import SuperpixelParams
-from runtime.geometry import Foothold, signed_area
+from runtime.geometry import Foothold
 
 STAGES = ("normals", "slic", "regions")
 
 #: a cut passes this far (px) beyond the centre of the cell it clears: half a cell
 _CUT_PX = 0.5
+#: rounding's reach (px): a hull corner this close to the line of its neighbours is dropped,
+#: and a blocked cell's centre this close outside a hull counts as covered. Projecting the
+#: cells onto a fitted plane moves them by ~1e-6 px, which would otherwise decide both either
+#: way (a grid edge of blocked cells lying along a hull's edge)
+_EDGE_PX = 1e-3
 
 
 def normals(elevation: np.ndarray, resolution: float, window_px: int = 1) -> np.ndarray:
@@ -390,73 +396,192 @@ class SuperpixelSegmenter:
                  cu: np.ndarray, cv: np.ndarray, cp: np.ndarray, cn: np.ndarray,
                  resolution: float, origin: np.ndarray) -> list[Foothold]:
         """V-E: each cluster's cells projected onto its plane (p_zeta, n_zeta), their convex
-        hull, cut clear of unusable cells, lifted onto the plane as a foothold."""
+        hull, cut clear of unusable cells, lifted onto the plane as a foothold: the geometry of
+        all clusters in one numba call (``_polygons``), the footholds in one batch."""
         p = self.params
-        cols = labels.shape[1]
         order, start = _members(labels, len(cu))
-        lab = labels.ravel()[order]
-        q = pts.reshape(-1, 3)[order]
         n = cn / np.linalg.norm(cn, axis=1, keepdims=True)
-        # every cell onto its cluster's plane along the normal, in pixel units (x = col,
-        # y = row): one vectorised step for all clusters
-        along = np.einsum("ij,ij->i", q - cp[lab], n[lab])
-        xy = (q[:, :2] - along[:, None] * n[lab, :2]) / resolution
-        blocked = ~usable
-        # which clusters' boxes hold a blocked cell, all at once: a summed-area table looked
-        # up at each cluster's bounding box of projected cells
-        sat = cv2.integral(blocked.astype(np.uint8))
-        sizes = np.diff(start)
-        runs = start[:-1][sizes > 0]
-        lo = np.zeros((len(cu), 2), int)
-        hi = np.zeros((len(cu), 2), int)
-        if len(runs):
-            lo[sizes > 0] = np.floor(np.minimum.reduceat(xy, runs)).astype(int)
-            hi[sizes > 0] = np.ceil(np.maximum.reduceat(xy, runs)).astype(int) + 1
-        lo = np.clip(lo, 0, None)
-        hi = np.minimum(hi, np.array(sat.shape[::-1]) - 1)
-        hi = np.maximum(hi, lo)
-        near = (sat[hi[:, 1], hi[:, 0]] - sat[lo[:, 1], hi[:, 0]] - sat[hi[:, 1], lo[:, 0]]
-                + sat[lo[:, 1], lo[:, 0]]) > 0
         min_px = max(p.min_area_m2 / (resolution * resolution), 1e-9)
-        lift = n @ np.append(origin, 0.0) + np.einsum("ij,ij->i", n, cp)  # plane offsets
-        out: list[Foothold] = []
-        for k in np.flatnonzero(sizes >= 3):
-            a, b = start[k], start[k + 1]
-            hull = convex_hull(xy[a:b])
-            if near[k]:
-                cells = order[a:b]
-                d2 = (cells % cols - cu[k]) ** 2 + (cells // cols - cv[k]) ** 2
-                anchor = np.array(divmod(int(cells[np.argmin(d2)]), cols)[::-1], float)
-                hull = _clear(hull, blocked, anchor, p.max_cuts)
-            if hull is None or len(hull) < 3 or signed_area(hull) < min_px:
-                continue
-            try:
-                out.append(Foothold.from_ccw(origin + hull * resolution, n[k], float(lift[k])))
-            except ValueError:  # degenerate after the cuts
-                continue
-        return out
+        verts, bounds, which = _polygons(pts.reshape(-1, 3), order, start, labels.shape[1],
+                                         resolution, cu, cv, cp, n, ~usable, p.max_cuts,
+                                         min_px)
+        lift = n[which] @ np.append(origin, 0.0) + np.einsum("ij,ij->i", n[which], cp[which])
+        return Foothold.many_from_ccw(origin + verts * resolution, bounds, n[which], lift)
 
 
-def _clear(hull: np.ndarray, blocked: np.ndarray, anchor: np.ndarray,
-           max_cuts: int) -> np.ndarray | None:
-    """The hull (CCW, px) cut until no blocked cell's centre lies in it: each cut is the
-    half-plane facing ``anchor`` (a cell of the cluster) half a cell beyond the covered blocked
-    cell nearest to it, so each cut clears at least that cell and keeps the anchor. None when
-    ``max_cuts`` do not clear it, or nothing is left."""
-    rows, cols = blocked.shape
-    x0, y0 = np.maximum(np.floor(hull.min(axis=0)).astype(int), 0)
-    x1, y1 = np.minimum(np.ceil(hull.max(axis=0)).astype(int) + 1, (cols, rows))
-    by, bx = np.nonzero(blocked[y0:y1, x0:x1])
-    bad = np.column_stack((bx + x0, by + y0)).astype(np.float64)
-    for _ in range(max_cuts + 1):
-        if len(hull) < 3:
-            return None
-        if len(bad):
-            depth, _ = depth_inside(hull, bad)  # exact inside a convex polygon: >= 0
-            bad = bad[depth >= -1e-9]
-        if len(bad) == 0:
-            return hull
-        b = bad[np.argmin(np.hypot(*(bad - anchor).T))]
-        a = (anchor - b) / np.hypot(*(anchor - b))
-        hull = clip_halfplane(hull, a, float(a @ b) + _CUT_PX)
-    return None
+@numba.njit(cache=True, nogil=True)
+def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """z of (a - o) x (b - o): > 0 when o -> a -> b turns left (counter-clockwise)."""
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull(xy: np.ndarray, out: np.ndarray) -> int:
+    """Convex hull of 2D points by Andrew's monotone chain, counter-clockwise from the least
+    (x, y), written to ``out`` (room for 2 len(xy) + 1); returns the corner count. The chain
+    drops only points strictly inside or on a line (no tolerance: with one, points a rounding
+    error apart in x, sorted out of line, can lose a true corner); corners within _EDGE_PX of
+    the line of their neighbours go afterwards (the grid's rows of cells), which only shrinks
+    the hull by as much."""
+    m = len(xy)
+    by_y = np.argsort(xy[:, 1], kind="mergesort")
+    idx = by_y[np.argsort(xy[by_y, 0], kind="mergesort")]  # by x, then y
+    h = 0
+    for j in range(m):  # the lower chain, left to right
+        q = xy[idx[j]]
+        while h >= 2 and _cross(out[h - 2], out[h - 1], q) <= 0.0:
+            h -= 1
+        out[h] = q
+        h += 1
+    low = h + 1
+    for j in range(m - 2, -1, -1):  # the upper chain, right to left
+        q = xy[idx[j]]
+        while h >= low and _cross(out[h - 2], out[h - 1], q) <= 0.0:
+            h -= 1
+        out[h] = q
+        h += 1
+    h -= 1  # the last is the first again
+    dropped = True
+    while dropped and h >= 3:  # the corners (almost) on the line of their neighbours
+        dropped = False
+        for i in range(h):
+            a, b = out[i - 1 if i > 0 else h - 1], out[i + 1 if i + 1 < h else 0]
+            if _cross(a, out[i], b) <= _EDGE_PX * math.hypot(b[0] - a[0], b[1] - a[1]):
+                out[i:h - 1] = out[i + 1:h].copy()
+                h -= 1
+                dropped = True
+                break
+    return h
+
+
+@numba.njit(cache=True, nogil=True)
+def _depth(poly: np.ndarray, k: int, x: float, y: float) -> float:
+    """Signed distance of (x, y) to the boundary of the CCW convex polygon poly[:k] (px,
+    positive inside): the least over its edges' inward lines."""
+    depth = np.inf
+    for i in range(k):
+        j = i + 1 if i + 1 < k else 0
+        nx, ny = poly[i, 1] - poly[j, 1], poly[j, 0] - poly[i, 0]  # inward: the edge turned left
+        norm = max(math.sqrt(nx * nx + ny * ny), 1e-300)
+        nx, ny = nx / norm, ny / norm
+        depth = min(depth, x * nx + y * ny - (nx * poly[i, 0] + ny * poly[i, 1]))
+    return depth
+
+
+@numba.njit(cache=True, nogil=True)
+def _clip(poly: np.ndarray, k: int, ax: float, ay: float, c: float, out: np.ndarray) -> int:
+    """poly[:k] (convex) cut to {x : a . x >= c} (one Sutherland-Hodgman pass) into ``out``,
+    corners closer than 1e-9 px to the next merged; returns the corner count."""
+    h = 0
+    for i in range(k):
+        j = i + 1 if i + 1 < k else 0
+        si = poly[i, 0] * ax + poly[i, 1] * ay - c
+        sj = poly[j, 0] * ax + poly[j, 1] * ay - c
+        if si >= -1e-12:
+            out[h] = poly[i]
+            h += 1
+        if (si >= -1e-12) != (sj >= -1e-12):
+            t = si / (si - sj)
+            out[h, 0] = poly[i, 0] + t * (poly[j, 0] - poly[i, 0])
+            out[h, 1] = poly[i, 1] + t * (poly[j, 1] - poly[i, 1])
+            h += 1
+    kept = 0
+    for i in range(h):
+        j = i + 1 if i + 1 < h else 0
+        if math.hypot(out[i, 0] - out[j, 0], out[i, 1] - out[j, 1]) > 1e-9:
+            out[kept] = out[i]
+            kept += 1
+    return kept if kept > 0 or h == 0 else 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _polygons(pts: np.ndarray, order: np.ndarray, start: np.ndarray, cols: int, r: float,
+              cu: np.ndarray, cv: np.ndarray, cp: np.ndarray, n: np.ndarray,
+              blocked: np.ndarray, max_cuts: int, min_px: float
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """V-E for every cluster of three cells or more and an upward normal: its cells
+    (``order[start[k]:start[k + 1]]``, flat indices of ``pts``, metres from cell (0, 0))
+    projected onto its plane (cp[k], n[k]) in px of r metres (x = col, y = row), their convex
+    hull, cut until no blocked cell's centre lies in it or within _EDGE_PX of it: each cut the
+    half-plane facing the cluster's cell nearest (cu, cv) half a cell beyond the covered
+    blocked cell nearest to that cell, so each cut clears at least that cell and keeps the
+    anchor (dropped after ``max_cuts``, or with less than ``min_px`` px^2 left). Returns the
+    polygons' corners back to back (CCW, px), their K + 1 bounds and the cluster of each."""
+    rows = blocked.shape[0]
+    count = len(cu)
+    verts = np.empty((len(order) + count * (max_cuts + 1), 2))
+    bounds = np.zeros(count + 1, np.int64)
+    which = np.empty(count, np.int64)
+    done = 0
+    for k in range(count):
+        a, b = start[k], start[k + 1]
+        m = b - a
+        if m < 3 or n[k, 2] <= 0.0:
+            continue
+        xy = np.empty((m, 2))  # the cells onto the plane along its normal, in px
+        best = np.inf
+        anchor_x = anchor_y = 0.0
+        for j in range(m):
+            i = order[a + j]
+            along = ((pts[i, 0] - cp[k, 0]) * n[k, 0] + (pts[i, 1] - cp[k, 1]) * n[k, 1]
+                     + (pts[i, 2] - cp[k, 2]) * n[k, 2])
+            xy[j, 0] = (pts[i, 0] - along * n[k, 0]) / r
+            xy[j, 1] = (pts[i, 1] - along * n[k, 1]) / r
+            d2 = (i % cols - cu[k]) ** 2 + (i // cols - cv[k]) ** 2
+            if d2 < best:  # the anchor: the cluster's cell nearest its centre (the first)
+                best = d2
+                anchor_x, anchor_y = float(i % cols), float(i // cols)
+        poly = np.empty((2 * m + max_cuts + 2, 2))  # the hull's two chains, then the cuts
+        spare = np.empty_like(poly)
+        h = _hull(xy, poly)
+        if h < 3:  # the cells on one line
+            continue
+        # the blocked cells in the hull's bounding box
+        x0 = max(math.floor(poly[:h, 0].min()), 0)
+        y0 = max(math.floor(poly[:h, 1].min()), 0)
+        x1 = min(math.ceil(poly[:h, 0].max()) + 1, cols)
+        y1 = min(math.ceil(poly[:h, 1].max()) + 1, rows)
+        bad = np.empty((max(x1 - x0, 0) * max(y1 - y0, 0), 2))
+        nb = 0
+        for y in range(y0, y1):
+            for x in range(x0, x1):
+                if blocked[y, x]:
+                    bad[nb, 0], bad[nb, 1] = x, y
+                    nb += 1
+        clear = False
+        for _ in range(max_cuts + 1):
+            if h < 3:
+                break
+            kept = 0  # the blocked cells still inside (or on an edge)
+            for j in range(nb):
+                if _depth(poly, h, bad[j, 0], bad[j, 1]) >= -_EDGE_PX:
+                    bad[kept] = bad[j]
+                    kept += 1
+            nb = kept
+            if nb == 0:
+                clear = True
+                break
+            near, dist = 0, np.inf
+            for j in range(nb):
+                dj = math.hypot(bad[j, 0] - anchor_x, bad[j, 1] - anchor_y)
+                if dj < dist:
+                    near, dist = j, dj
+            ux, uy = anchor_x - bad[near, 0], anchor_y - bad[near, 1]
+            norm = math.hypot(ux, uy)
+            ux, uy = ux / norm, uy / norm
+            h = _clip(poly, h, ux, uy, ux * bad[near, 0] + uy * bad[near, 1] + _CUT_PX, spare)
+            poly, spare = spare, poly
+        if not clear or h < 3:
+            continue
+        area = 0.0  # the shoelace sum
+        for i in range(h):
+            j = i - 1 if i > 0 else h - 1
+            area += poly[j, 0] * poly[i, 1] - poly[i, 0] * poly[j, 1]
+        if 0.5 * area < min_px:
+            continue
+        o = bounds[done]
+        verts[o:o + h] = poly[:h]
+        bounds[done + 1] = o + h
+        which[done] = k
+        done += 1
+    return verts[:bounds[done]], bounds[:done + 1], which[:done]

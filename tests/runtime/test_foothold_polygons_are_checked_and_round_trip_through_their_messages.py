@@ -80,6 +80,26 @@ def test_from_ccw_keeps_the_corners_and_plane_and_walls_each_edge() -> None:
     assert fh.contains(p) and np.isclose(TILT @ p, 0.2)
 
 
+def test_many_from_ccw_gives_what_from_ccw_gives_one_by_one_and_names_a_bad_polygon() -> None:
+    polys = [np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 1.0]]),
+             np.array([[2.0, 0.0], [3.0, 0.5], [2.5, 1.0]]), SQUARE + 5.0]
+    normals = np.array([TILT, [0.0, 0.0, 1.0], TILT])
+    offsets = [0.2, -0.1, 0.0]
+    bounds = np.cumsum([0] + [len(v) for v in polys])
+    many = Foothold.many_from_ccw(np.concatenate(polys), bounds, normals, offsets)
+    assert len(many) == 3
+    for f, v, n, d in zip(many, polys, normals, offsets, strict=True):
+        one = Foothold.from_ccw(v, n, d)
+        for name in ("A", "b", "normal", "vertices_xy"):
+            assert np.array_equal(getattr(f, name), getattr(one, name))
+            assert not getattr(f, name).flags.writeable
+        assert f.offset == one.offset and np.array_equal(f.halfspaces_xy[0], one.halfspaces_xy[0])
+    assert Foothold.many_from_ccw(np.zeros((0, 2)), [0], np.zeros((0, 3)), []) == []
+    polys[1] = polys[1][::-1]  # clockwise
+    with pytest.raises(ValueError, match=r"counter-clockwise.*\(polygon 1 of 3\)"):
+        Foothold.many_from_ccw(np.concatenate(polys), bounds, normals, offsets)
+
+
 @pytest.mark.parametrize(("make", "message"), [
     (lambda: Foothold.from_polygon(np.array([[0.0, 0.0], [1.0, 1.0], [1.0, 1.0]])),
      "at least 3 distinct corners"),

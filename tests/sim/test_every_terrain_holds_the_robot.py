@@ -10,7 +10,8 @@ from lcmtypes import depth_frame_t, ground_truth_t
 from runtime.cassie_packets import OutputPacket, encode_input
 
 
-@pytest.mark.parametrize("terrain", ["flat", "stairs", "beam", "stones", "blocks"])
+@pytest.mark.parametrize("terrain", ["flat", "stairs", "beam", "stones", "blocks", "ramped_stones",
+                                     "winding_beam"])
 def test_robot_stands_on_each_terrain(driver_factory, terrain: str) -> None:
     drv = driver_factory("lockstep", {"terrain": f"terrains/{terrain}.yaml"})
     node = drv.node

@@ -15,7 +15,8 @@ from sim.terrain import load_terrain
 from .conftest import HW_CONFIG
 
 
-@pytest.mark.parametrize("name", ["flat", "stairs", "beam", "stones", "blocks"])
+@pytest.mark.parametrize("name", ["flat", "stairs", "beam", "stones", "blocks", "ramped_stones",
+                                  "winding_beam"])
 def test_shipped_terrains_load(name: str) -> None:
     t = load_terrain(HW_CONFIG / "terrains" / f"{name}.yaml")
     assert t.name == name and t.footholds
@@ -27,7 +28,8 @@ def test_shipped_terrains_load(name: str) -> None:
 
 
 @pytest.mark.parametrize("text, key, words", [
-    ("terrain: lava\n", "terrain", "allowed: flat, stairs, beam, stones, blocks, boxes"),
+    ("terrain: lava\n", "terrain", "allowed: flat, stairs, beam, stones, blocks, "
+     "ramped_stones, winding_beam, boxes"),
     ("foothold_margin: 0.1\n", "terrain", "is required (allowed: flat, stairs"),
     ("terrain: stairs\nparams: {rise: -0.1}\n", "params.rise", "out of range: -0.1 (allowed: "
      "(0.0, inf])"),
@@ -51,6 +53,15 @@ def test_shipped_terrains_load(name: str) -> None:
      "out of range: 0"),
     ("terrain: blocks\nparams: {size_min: 0.9, size_max: 0.3}\n", "params.size_min", "above"),
     ("terrain: blocks\nparams: {area: [1, 0, 0, 1]}\n", "params.area", "x_min < x_max"),
+    ("terrain: ramped_stones\nparams: {max_tilt_deg: 40}\n", "params.max_tilt_deg",
+     "(0, 30] deg"),
+    ("terrain: winding_beam\nparams: {turn_min_deg: 35}\n", "params.turn_min_deg",
+     "[0, 30.0] deg"),
+    ("terrain: winding_beam\nparams: {max_heading_deg: 10}\n", "params.max_heading_deg",
+     "[15.0, 90) deg"),
+    ("terrain: winding_beam\nparams: {segments: 2.5}\n", "params.segments",
+     "must be an integer"),
+    ("terrain: beam\nseed: 3\n", "seed", "stones, blocks, ramped_stones, winding_beam"),
     ("- just\n- a list\n", "<top level>", "mapping"),
     ("terrain: [unclosed\n", "<file>", "not valid YAML"),
 ])

@@ -7,7 +7,6 @@ The terrain is taken from the launch profile's sim process (``params.terrain``),
 from __future__ import annotations
 
 import logging
-import math
 from pathlib import Path
 from typing import Any
 
@@ -51,9 +50,7 @@ def log_terrain(rec: rr.RecordingStream, terrain: Any) -> int:
         return 0
     centers = np.array([b.center for b in boxes], np.float64)
     half = 0.5 * np.array([b.size for b in boxes], np.float64)
-    quats = np.array(
-        [[0.0, 0.0, math.sin(0.5 * b.yaw), math.cos(0.5 * b.yaw)] for b in boxes], np.float64
-    )
+    quats = np.array([[*b.quat_wxyz[1:], b.quat_wxyz[0]] for b in boxes], np.float64)  # xyzw
     rec.log(
         "world/terrain",
         rr.Boxes3D(

@@ -4,7 +4,9 @@ The same process nodes as `cassie launch` (from ``hw_config/experiment.yaml``) a
 sim-time order inside this one process, so a result depends on the seed and the code, never on
 how busy the machine is. Terrains: ``flat``, ``stairs`` (15 cm rise, 27 cm depth; 40 cm with
 ``--perception``, as the paper's Fig. 11), ``beam``
-(23 cm wide), ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``) and
+(23 cm wide), ``stones`` (the paper's random stepping stones, Table I, ``--dmin D``),
+QuadPiPS' ``ramped_stones`` (those stones with tops tilted up to 10 deg) and ``winding_beam``
+(23 cm wide, segments turning 20-30 deg; the operator steers along its centre line), and
 ``chasm`` (a gap across the path between two platforms, ``--width W``, default 0.35 m), with
 ground-truth footholds from the sim, or with ``--perception`` the footholds of S3; with
 ``--guide`` the SLIP guide (Bartlett & Manchester) runs beside the MPFC and guides it.
@@ -42,9 +44,15 @@ from tools.experiment.operator import LATERAL_GAIN, LATERAL_MAX_MPS
 from tools.experiment.trials import run_live_trial, run_trial
 from tools.report import print_cpu, print_loops, print_realtime
 
-EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks", "chasm", "cubes")
-#: the parameter a ``--sweep`` varies, per experiment
-SWEEP_PARAM = {"stones": "dmin", "stairs": "depth", "beam": "width", "chasm": "width"}
+EXPERIMENTS = ("flat", "stairs", "beam", "stones", "blocks", "ramped_stones", "winding_beam",
+               "chasm", "cubes")
+#: the experiments of a beam (``--width``, as the chasm's gap) and of Table I's stones
+#: (``--dmin``)
+BEAMS = ("beam", "winding_beam")
+STONES = ("stones", "ramped_stones")
+#: what ``--sweep`` may sweep on each experiment
+SWEEPS = {"stones": "dmin", "ramped_stones": "dmin", "stairs": "depth", "beam": "width",
+          "winding_beam": "width", "chasm": "width"}
 
 __all__ = ["EXPERIMENTS", "PERCEPTION_BEAM_WIDTH_M", "PERCEPTION_STAIRS_DEPTH_M", "Judge",
            "Trial", "_terrain_file", "main", "run_live_trial", "run_trial"]
@@ -58,16 +66,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("name", choices=EXPERIMENTS)
     ap.add_argument("--duration", type=float, default=10.0, help="sim seconds per trial")
-    ap.add_argument("--seed", type=int, default=0, help="terrain seed (stones)")
+    ap.add_argument("--seed", type=int, default=0,
+                    help="terrain seed (stones, ramped_stones, winding_beam)")
     ap.add_argument("--trials", type=int, default=1, help="trials, seeds seed..seed+N-1")
-    ap.add_argument("--dmin", type=float, default=None, help="stones: minimum side d_min, m")
+    ap.add_argument("--dmin", type=float, default=None,
+                    help="stones, ramped_stones: minimum side d_min, m")
     ap.add_argument("--depth", type=float, default=None,
                     help="stairs: tread depth, m (default 0.27 with true footholds and 0.40 "
                     "with --perception: the paper's Fig. 11, top and bottom)")
     ap.add_argument("--width", type=float, default=None,
-                    help="beam: its width, m (default 0.23 with true footholds and 0.35 with "
-                    "--perception: the paper's Fig. 11, top and bottom); chasm: the gap's "
-                    "width across the path, m (default 0.35: hw_config/terrains/chasm.yaml)")
+                    help="beam, winding_beam: its width, m (default 0.23 with true footholds "
+                    "and 0.35 with --perception: the paper's Fig. 11, top and bottom); chasm: "
+                    "the gap's width across the path, m (default 0.35: "
+                    "hw_config/terrains/chasm.yaml)")
     ap.add_argument("--guide", action="store_true",
                     help="the SLIP guide (Bartlett & Manchester's long-horizon planner, "
                          "processes/slip_guide) runs too, and the MPFC follows its plan: "
@@ -111,8 +122,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="--launch: with the Rerun dashboard recording too (its CPU is in the "
                          "report's CPU table)")
     ap.add_argument("--sweep", default=None, metavar="dmin=LO:HI:STEP",
-                    help="a sweep: every value of the parameter (stones: dmin; stairs: depth; "
-                         "beam, chasm: width; "
+                    help="a sweep: every value of the parameter (stones, ramped_stones: dmin; "
+                         "stairs: depth; beam, winding_beam, chasm: width; "
                          "A:B:STEP or A,B,C) times --trials seeds, as jobs over the cores; "
                          "resumable (finished trials are kept in OUT/trials.jsonl); writes "
                          "OUT/summary.json and OUT/summary.png (tools/experiment/sweep.py)")
@@ -132,13 +143,13 @@ def main(argv: list[str] | None = None) -> int:
         return _cubes(ap, args)
     if args.sweep is not None:
         return _sweep(ap, args)
-    if args.dmin is not None and args.name != "stones":
-        ap.error("--dmin is for the stones experiment")
+    if args.dmin is not None and args.name not in STONES:
+        ap.error("--dmin is for the stones and ramped_stones experiments")
     if args.depth is not None and (args.name != "stairs" or not 0.1 <= args.depth <= 2.0):
         ap.error("--depth is for the stairs experiment, 0.1 to 2.0 m")
-    if args.width is not None and (args.name not in ("beam", "chasm")
+    if args.width is not None and (args.name not in (*BEAMS, "chasm")
                                    or not 0.05 <= args.width <= 2.0):
-        ap.error("--width is for the beam and chasm experiments, 0.05 to 2.0 m")
+        ap.error("--width is for the beam, winding_beam and chasm experiments, 0.05 to 2.0 m")
     if args.duration <= 0 or args.trials < 1:
         ap.error("--duration must be > 0 and --trials >= 1")
     if args.name == "stairs" and args.perception and args.depth is None:
@@ -147,9 +158,9 @@ def main(argv: list[str] | None = None) -> int:
         args.depth = PERCEPTION_STAIRS_DEPTH_M
         print(f"stairs with perception: {args.depth:.2f} m treads, as the paper's Fig. 11 "
               "(--depth to change)")
-    if args.name == "beam" and args.perception and args.width is None:
+    if args.name in BEAMS and args.perception and args.width is None:
         args.width = PERCEPTION_BEAM_WIDTH_M  # (as the stairs: the paper's Fig. 11, bottom)
-        print(f"beam with perception: {args.width:.2f} m wide, as the paper's Fig. 11 "
+        print(f"{args.name} with perception: {args.width:.2f} m wide, as the paper's Fig. 11 "
               "(--width to change)")
     size = args.depth if args.name == "stairs" else args.width
     recorder = None
@@ -292,7 +303,7 @@ def _sweep(ap: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     from tools.experiment.sweep import TrialSpec, frange, run_sweep, summarise, write_summary
 
     name, _, values = args.sweep.partition("=")
-    allowed = SWEEP_PARAM.get(args.name)
+    allowed = SWEEPS.get(args.name)
     if name != allowed:
         ap.error(f"--sweep for {args.name}: " + (f"{allowed}=LO:HI:STEP" if allowed
                                                  else "nothing to sweep"))

@@ -1,6 +1,7 @@
 """A trial's course: its terrain file (the paper's stairs at a tread depth, its beam at a
-width, random stepping stones of a d_min and a seed, a chasm of a width) and the experiment
-profile that runs the stack on it (with the SLIP guide or without)."""
+width, random stepping stones of a d_min and a seed, QuadPiPS' ramped stones and winding beam,
+a chasm of a width) and the experiment profile that runs the stack on it (with the SLIP guide
+or without)."""
 
 from __future__ import annotations
 
@@ -21,8 +22,14 @@ PERCEPTION_BEAM_WIDTH_M = 0.35
 
 
 #: the terrain parameter a course's ``size`` sets (Fig. 11: the stairs' tread depth, the
-#: beam's width)
-SIZE_PARAM = {"stairs": "depth", "beam": "width"}
+#: beam's width; the winding beam's too)
+SIZE_PARAM = {"stairs": "depth", "beam": "width", "winding_beam": "width"}
+#: the courses of Table I's random stepping stones: ``dmin`` sets their d_min
+DMIN_COURSES = ("stones", "ramped_stones")
+#: the random courses whose terrain is the trial's seed's
+SEEDED_COURSES = ("stones", "ramped_stones", "winding_beam")
+#: the courses with an end: their last box is the far platform or the stairs' landing
+COURSES_WITH_END = ("stones", "beam", "stairs", *SEEDED_COURSES)
 #: the guide process's name in processes.yaml (``--guide``)
 GUIDE_PROCESS = "slip_guide"
 
@@ -40,26 +47,26 @@ def _chasm_file(width: float, work: Path) -> str:
 
 def _terrain_file(name: str, dmin: float | None, seed: int, work: Path,
                   size: float | None = None) -> str:
+    """The trial's terrain file: hw_config/terrains/NAME.yaml, or a copy of it in ``work``
+    with the trial's seed (random courses), d_min (stones) or size (``SIZE_PARAM``: Fig. 11's
+    27 cm treads and 23 cm beam with ground truth, 40 cm and 35 cm with perception)."""
+    src = HW_CONFIG_DIR / "terrains" / f"{name}.yaml"
+    changes: dict[str, float] = {}
     if name in SIZE_PARAM and size is not None:
-        # hw_config/terrains/NAME.yaml with another tread depth or beam width (Fig. 11: 27 cm
-        # treads and a 23 cm beam with ground truth, 40 cm and 35 cm with perception)
-        doc = safe_load((HW_CONFIG_DIR / "terrains" / f"{name}.yaml").read_text())
-        doc["params"][SIZE_PARAM[name]] = float(size)
-        path = work / f"{name}.yaml"
-        path.write_text(yaml.safe_dump(doc, sort_keys=False))
-        return str(path)
+        changes[SIZE_PARAM[name]] = float(size)
     if name == "chasm" and size is not None:
         return _chasm_file(size, work)
-    if name == "stones":
-        path = work / "stones.yaml"
-        path.write_text(
-            "terrain: stones\n"
-            f"seed: {seed}\nfoothold_margin: 0.02\nfoot_half_size: [0.10, 0.02]\n"
-            f"params: {{d_min: {dmin if dmin is not None else 0.35}, platform: 1.0,"
-            " pit_depth: 0.5}\n"
-        )
-        return str(path)
-    return str(HW_CONFIG_DIR / "terrains" / f"{name}.yaml")
+    if name in DMIN_COURSES and dmin is not None:
+        changes["d_min"] = float(dmin)
+    if not changes and name not in SEEDED_COURSES:
+        return str(src)
+    doc = safe_load(src.read_text())
+    doc["params"] = {**(doc.get("params") or {}), **changes}
+    if name in SEEDED_COURSES:
+        doc["seed"] = int(seed)
+    path = work / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return str(path)
 
 
 #: ``--planner``: the MPFC, or the DCM planner (Xiang et al.) and its ablations B-D
@@ -144,10 +151,11 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
              fixed_timing: bool = False, true_state: bool = False, planner: str = "mpfc",
              segmenter: str = "s3", guide: bool = False
              ) -> tuple[Path, Profile, list[str], list[Any], Callable[[float, float], float],
-                        float | None]:
+                        float | None, tuple[tuple[float, float], ...]]:
     """The trial's terrain and profile in ``work``: (profile path, profile, launched
     processes, the terrain's ground-truth footholds for the judge, its height, the course's
-    end: the near edge in x of its last surface, None without one)."""
+    end: the near edge in x of its last surface, None without one, and its centre line for
+    the operator: ``Terrain.path``, empty for the x axis)."""
     from sim import terrain as terrain_mod
 
     terrain = _terrain_file(name, dmin, seed, work, size)
@@ -158,14 +166,15 @@ def _prepare(base_profile: Path, name: str, dmin: float | None, seed: int, perce
     ter = terrain_mod.load_terrain(terrain)
     footholds = list(ter.landing_surfaces)
     return (prof_path, load_profile(prof_path), launch, footholds, ter.height_at,
-            course_end_x(ter))
+            course_end_x(ter), ter.path)
 
 
 def course_end_x(ter: Any) -> float | None:
-    """Where a course ends: the near edge (x) of its last box, the far platform of stones
-    and beam, the stairs' landing or a chasm's end platform (hand-written boxes in a row
-    along x, each beginning where the one before ends or beyond); None for a terrain without
-    boxes (flat ground) or with its boxes not in a row along x (``blocks``)."""
+    """Where a course ends: the near edge (x) of its last box, the far platform of the stones
+    and beams (an untilted platform across the end of the winding beam's last segment), the
+    stairs' landing or a chasm's end platform (hand-written boxes in a row along x, each
+    beginning where the one before ends or beyond); None for a terrain without boxes (flat
+    ground) or with its boxes not leading to a last one along x (``blocks``)."""
     if not ter.boxes:
         return None
     if ter.name == "boxes":
@@ -173,7 +182,7 @@ def course_end_x(ter: Any) -> float | None:
                  for b in ter.boxes]
         if len(spans) < 2 or any(b[0] < a[1] - 1e-9 for a, b in pairwise(spans)):
             return None
-    elif ter.name not in ("stones", "beam", "stairs"):
+    elif ter.name not in COURSES_WITH_END:
         return None
     last = ter.boxes[-1]
     return float(last.center[0] - 0.5 * last.size[0])

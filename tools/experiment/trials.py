@@ -84,7 +84,7 @@ def run_trial(
     trial = Trial(experiment=name, seed=seed, commanded_velocity_mps=vx)
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        _, profile, launch, footholds, ground, goal = _prepare(
+        _, profile, launch, footholds, ground, goal, path = _prepare(
             base_profile, name, dmin, seed, perception, work, size=size,
             fixed_timing=fixed_timing, true_state=true_state, planner=planner,
             segmenter=segmenter, guide=guide)
@@ -92,7 +92,7 @@ def run_trial(
         gt_channel = profile.channels["ground_truth"].name
         h.add(
             Binding(
-                Operator(vx, lateral_gain),
+                Operator(vx, lateral_gain, path=path),
                 inputs={"ground_truth": gt_channel},
                 outputs={"command": profile.channels["command"].name},
             )
@@ -172,13 +172,13 @@ def run_live_trial(
         work = Path(tmp)
         logs = log_dir if log_dir is not None else work / "logs"
         logs.mkdir(parents=True, exist_ok=True)
-        prof_path, profile, launch, footholds, ground, goal = _prepare(
+        prof_path, profile, launch, footholds, ground, goal, path = _prepare(
             base_profile, name, dmin, seed, perception, work, mode, size, fixed_timing,
             true_state, planner, segmenter, guide)
         # the trial starts when the sim releases the holder (the OSC's first torque): the
         # processes take seconds to start while the sim already runs
         judge = Judge(footholds, math.inf, ground, goal)
-        operator = Operator(vx, lateral_gain)
+        operator = Operator(vx, lateral_gain, path=path)
         # this process is the operator's radio and the judge: a laptop tool, on its CPUs (as
         # the supervisor), never on the NUC's, and its CPU goes into the table as a watcher's
         pin_to_supervisor_host(profile)
