@@ -39,7 +39,7 @@ def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
     ({"terrain": "beam", "terrain_seed": 2}, "params.terrain_seed: terrain 'beam' is not "
                                              "random (allowed: stones, blocks)"),
     ({"terrain": "lava"}, "params.terrain: unknown terrain 'lava' (allowed: flat, stairs, "
-                          "beam, stones, blocks or a .yaml file)"),
+                          "beam, stones, blocks, ramped_stones, winding_beam or a .yaml file)"),
     ({"push": {"after_release_s": 1.0, "force_n": [0, 0]}},
      "params.push.force_n: must be a list of 3, got 2"),
     ({"holder_release": "later"}, "params.holder_release: 'later' is not one of the allowed "
