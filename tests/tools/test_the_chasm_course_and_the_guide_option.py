@@ -16,8 +16,8 @@ from tools.experiment.sweep import TrialSpec
 @pytest.mark.parametrize("width", [None, 0.30, 0.45])
 def test_the_chasm_has_the_gap_asked_for_and_ends_at_its_far_platform(
         tmp_path: Path, width: float | None) -> None:
-    _, _, _, surfaces, ground, goal = _prepare(HW_CONFIG_DIR / "experiment.yaml", "chasm",
-                                               None, 0, False, tmp_path, size=width)
+    _, _, _, surfaces, ground, goal, _ = _prepare(HW_CONFIG_DIR / "experiment.yaml", "chasm",
+                                                  None, 0, False, tmp_path, size=width)
     gap = 0.35 if width is None else width
     assert goal == pytest.approx(1.0 + gap)
     assert ground(0.5, 0.0) == 0.0 and ground(1.0 + 0.5 * gap, 0.0) == -0.5  # the pit
