@@ -47,12 +47,6 @@ class DcmInputs:
     ell: int  # stance sign of (11)/(15): 0 left stance, 1 right stance
     #: p_0, the previous stance foot (2,): where the double stance's CoP ramp starts
     p0: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))
-    #: the least stride width of this solve (None: w_min), wider in a stop (``Halt``)
-    w_min_m: float | None = None
-
-    def width_min(self, p: DcmParams) -> float:
-        """The lower stride-width bound of (19) for this solve, m."""
-        return p.w_min_m if self.w_min_m is None else max(p.w_min_m, self.w_min_m)
 
     def start_violations(self, p: DcmParams) -> list[str]:
         """(15) and (16) at k = 1, which no decision can change: what fails, if anything."""
@@ -195,7 +189,7 @@ class DcmModel:
         for k in range(1, n):  # (19)
             ax, ay = self._stride_rows(k, inp.ell)
             rows += [ax, -ax, ay, -ay]
-            rhs += [p.l_max_m, -p.l_min_m, p.w_max_m, -inp.width_min(p)]
+            rhs += [p.l_max_m, -p.l_min_m, p.w_max_m, -p.w_min_m]
         return np.array(rows).reshape(-1, self.nz), np.array(rhs)
 
     def prefilter(self, inp: DcmInputs):
@@ -219,7 +213,7 @@ class DcmModel:
                 dy_b = sign * (ymin[None, :] - y1[:, None])
                 dy_hi, dy_lo = np.maximum(dy_a, dy_b), np.minimum(dy_a, dy_b)
                 return ((dx_hi >= p.l_min_m - tol) & (dx_lo <= p.l_max_m + tol)
-                        & (dy_hi >= inp.width_min(p) - tol) & (dy_lo <= p.w_max_m + tol))
+                        & (dy_hi >= p.w_min_m - tol) & (dy_lo <= p.w_max_m + tol))
 
             zero = np.zeros(1)
             first = ok(1, zero, zero, zero, zero)[0]
@@ -316,7 +310,7 @@ class DcmModel:
         ub = np.full(nv, np.inf)
         lb[i_sig], ub[i_sig] = self.sigma_lo, self.sigma_hi  # (13)
         lb[isx: isx + n - 1], ub[isx: isx + n - 1] = p.l_min_m, p.l_max_m  # (19)
-        lb[isy: isy + n - 1], ub[isy: isy + n - 1] = inp.width_min(p), p.w_max_m
+        lb[isy: isy + n - 1], ub[isy: isy + n - 1] = p.w_min_m, p.w_max_m
         big = p.big_m_m
         for k in range(2, n + 1):  # (18)
             for j in range(m):

@@ -87,11 +87,8 @@ class DcmSolver:
 
     def solve(self, x_alip: np.ndarray, stance: str, p_stance: np.ndarray,
               t_remaining_s: float, vdes: np.ndarray, footholds: list[Foothold],
-              yaw: float = 0.0, transfer: SupportTransfer | None = None,
-              stop_width_m: float | None = None) -> MpfcSolution:
-        """Plan from the ALIP state; see the module docstring for the frames and timing. In a
-        stop, ``stop_width_m``: the least stride width (19) widened to it, so that the feet
-        come to rest far enough apart to stand; where no plan keeps it, the usual w_min."""
+              yaw: float = 0.0, transfer: SupportTransfer | None = None) -> MpfcSolution:
+        """Plan from the ALIP state; see the module docstring for the frames and timing."""
         t_start = time.perf_counter()
         p = self.params
         x, p_stance, v, _ = checked_inputs("DcmSolver.solve", self.recorder, x_alip, stance,
@@ -113,7 +110,7 @@ class DcmSolver:
         sn = self.model.sigma_nom
         goal[0] += stride[0] * (1.0 - sn * kap) / (sn - 1.0)  # the periodic DCM offset
         inp = DcmInputs(z1, goal, float(stride[0]),
-                        0 if stance == "left" else 1, p0, stop_width_m)
+                        0 if stance == "left" else 1, p0)
         lf = self._footholds.world(footholds).local(
             p_stance, yaw, p.foothold_max_count, p.foothold_max_distance_m, p.foothold_anchor_m)
         self.last_inputs, self.last_local = inp, lf
@@ -122,12 +119,7 @@ class DcmSolver:
         incumbent = (shifted_incumbent(prev.foothold_indices, prev.stance, stance, lf)
                      if prev is not None else None)
         self.engine.optimizer_s = 0.0
-        deadline = t_start + p.time_limit_ms * 1e-3
-        res = self.search.run(qp, lf, incumbent, deadline)
-        if stop_width_m is not None and res.status == "infeasible":
-            inp.w_min_m = None
-            qp = self.model.condense(inp)
-            res = self.search.run(qp, lf, incumbent, deadline)
+        res = self.search.run(qp, lf, incumbent, t_start + p.time_limit_ms * 1e-3)
         sol = MpfcSolution.from_search(res, lf, self.model.F, p_stance, rot, stance,
                                        self.engine.optimizer_s * 1e3)
         if sol.has_plan:

@@ -42,9 +42,6 @@ class MpfcParams:
     lateral_instant_transfer: bool = True  # Appendix A
     big_m_m: float = spec(10.0, lo=0.0, lo_open=True, unit="m")  # M of (20)
     crossover_margin_m: float = spec(0.06, lo=0.0, unit="m")  # ours: blade width + clearance
-    #: in a stop for nothing ahead (``gait.Halt``), the crossover margin: the feet far enough
-    #: apart for the OSC's standing controller (ours; 0: off, as measured best)
-    stop_width_m: float = spec(0.0, lo=0.0, unit="m")
     trust_region_start_s: float = spec(0.27, lo=0.0, unit="s")
     trust_region_rate_mps: float = spec(1.0, lo=0.0, unit="m/s")
     foothold_max_count: int = spec(20, lo=1, hi=200)

@@ -36,12 +36,6 @@ class SolveInputs:
     sigma0: float  # sigma of (18) for the current stance: -1 left, +1 right
     trust_center: np.ndarray | None  # previous p_1 (xy) in this frame, or None
     trust_radius: float  # half-width of the trust-region box, m
-    #: the crossover margin of this solve (None: the params'), wider in a stop (``Halt``)
-    crossover_m: float | None = None
-
-    def crossover(self, p: MpfcParams) -> float:
-        """Each footstep lands at least this far to its side of the one before, m."""
-        return p.crossover_margin_m if self.crossover_m is None else self.crossover_m
 
 
 def crossover_trust_masks(qp: CondensedQp, lf: LocalFootholds
@@ -226,9 +220,7 @@ class MpfcModel:
             z_hi[2:4] = inp.trust_center + inp.trust_radius
         return CondensedQp(
             pmat, qvec, const, cs_mat, cs_vec, self.soft_lim, p.soft_constraint_cost,
-            self._gx[float(inp.sigma0)],
-            self._hx if inp.crossover_m is None else np.full(n, -inp.crossover_m),
-            z_lo, z_hi, e_mat, e_vec,
+            self._gx[float(inp.sigma0)], self._hx, z_lo, z_hi, e_mat, e_vec,
             crossover_trust_masks,
         )
 
@@ -318,7 +310,7 @@ def build_miqp(model: MpfcModel, inp: SolveInputs, lf: LocalFootholds) -> MiqpDa
         row[px(k + 1).start + 1] = -sig
         if k >= 1:
             row[px(k).start + 1] = sig
-        add(row, -inp.crossover(p))
+        add(row, -p.crossover_margin_m)
     for j in range(nx):
         for sgn in (1.0, -1.0):
             row = np.zeros(nv)

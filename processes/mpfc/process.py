@@ -126,8 +126,8 @@ class FootstepSolver(Protocol):
 
     def solve(self, x_alip: np.ndarray, stance: str, p_stance: np.ndarray,
               t_remaining_s: float, vdes: np.ndarray, footholds: list[Foothold],
-              yaw: float = 0.0, transfer: SupportTransfer | None = None,
-              stop_width_m: float | None = None) -> MpfcSolution: ...
+              yaw: float = 0.0, transfer: SupportTransfer | None = None
+              ) -> MpfcSolution: ...
 
     def reset(self) -> None: ...
 
@@ -273,8 +273,6 @@ class MpfcNode(Node):
             yaw=yaw,
             transfer=SupportTransfer(self.liftoff_pos, liftoff - t if in_ds else 0.0,
                                      p.t_ds_s + clock.extra_ds_s),
-            # in a stop the feet come to rest far enough apart for the OSC to stand on them
-            stop_width_m=p.stop_width_m if stopping and p.stop_width_m > 0.0 else None,
         )
         self.solves += 1
         self.last_status = sol.status if self.halt.state == Halt.RUNNING else \

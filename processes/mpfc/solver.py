@@ -172,12 +172,9 @@ class MpfcSolver:
         footholds: list[Foothold],
         yaw: float = 0.0,
         transfer: SupportTransfer | None = None,
-        stop_width_m: float | None = None,
     ) -> MpfcSolution:
         """Solve (15) for the current state; see the module docstring for frames and timing.
-        (``transfer`` is for planners without the ALIP's double stance: unused here.) In a
-        stop, ``stop_width_m``: the crossover margin widened to it, so that the feet come to
-        rest far enough apart to stand; where no footstep can keep it, the usual margin."""
+        (``transfer`` is for planners without the ALIP's double stance: unused here.)"""
         t_start = time.perf_counter()
         p = self.params
         x_c, p_stance, v, t_star = checked_inputs("MpfcSolver.solve", self.recorder, x_alip,
@@ -198,18 +195,13 @@ class MpfcSolver:
             trust_center = (rot.T @ (prev.footsteps[0] - p_stance))[:2]
             trust_radius = max(p.trust_region_rate_mps * t_star, 0.0)
         inp = SolveInputs(x_c, t_star, v, -1.0 if stance == "left" else 1.0, trust_center,
-                          trust_radius, None if stop_width_m is None else
-                          max(stop_width_m, p.crossover_margin_m))
+                          trust_radius)
         self.last_inputs, self.last_local = inp, lf
         qp = self.model.condense(inp)
         incumbent = self._incumbent(prev, stance, lf) if prev is not None else None
         self.engine.optimizer_s = 0.0
         deadline = t_start + p.time_limit_ms * 1e-3
         res = self.search.run(qp, lf, incumbent, deadline)
-        if stop_width_m is not None and res.status == "infeasible":
-            inp.crossover_m = None
-            qp = self.model.condense(inp)
-            res = self.search.run(qp, lf, incumbent, deadline)
         sol = MpfcSolution.from_search(res, lf, p.horizon_steps, p_stance, rot, stance,
                                        self.engine.optimizer_s * 1e3,
                                        trust_region_active=trust_center is not None)

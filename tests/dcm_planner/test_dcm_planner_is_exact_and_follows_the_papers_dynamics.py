@@ -212,25 +212,3 @@ def test_a_bad_gains_file_names_file_key_and_allowed(tmp_path):
     bad.write_text(GAINS.read_text().replace("variant: A", "variant: E"))
     with pytest.raises(ConfigError, match=r"variant: 'E' is not one of the allowed values"):
         load(DcmParams, bad)
-
-
-def test_a_stop_widens_the_least_stride_width_and_keeps_a_plan_where_it_cannot():
-    """``stop_width_m`` (a stop for nothing ahead) raises w_min of (19) for the solve: every
-    planned stride is at least that wide on open ground; on a strip too narrow for it the
-    usual w_min still gives a plan."""
-    from runtime.geometry import Foothold
-
-    p = _params()
-    solver = DcmSolver(p)
-    x = np.array([0.0, -0.05, 0.0, 0.0])  # left stance, the DCM 5 cm to its right
-    stop = solver.solve(x, "left", np.zeros(3), p.t_nom_s, np.zeros(2), [_flat()],
-                        stop_width_m=0.2)
-    assert stop.has_plan and solver.last_inputs.w_min_m == 0.2
-    ys = np.concatenate([[0.0], stop.footsteps[:, 1]])
-    assert np.all(np.abs(np.diff(ys)) >= 0.2 - 1e-6)
-    strip = Foothold.from_polygon(np.array([[-1.0, -0.25], [1.0, -0.25], [1.0, 0.02],
-                                            [-1.0, 0.02]]))  # 27 cm: no 30 cm stride on it
-    solver.reset()
-    narrow = solver.solve(x, "left", np.zeros(3), p.t_nom_s, np.zeros(2), [strip],
-                          stop_width_m=0.3)
-    assert narrow.has_plan and solver.last_inputs.w_min_m is None

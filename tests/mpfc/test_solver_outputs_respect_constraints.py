@@ -69,34 +69,3 @@ def test_nominal_walk_on_open_ground_steps_at_the_nominal_width(params) -> None:
     assert np.isclose(sol.footsteps[1, 1] - sol.footsteps[0, 1], params.step_width_m, atol=0.03)
     assert abs(sol.t_remaining_opt_s - 0.3) < 0.01
     assert abs(sol.ankle_torque_nm) < 2.0
-
-
-def test_a_stop_plans_the_feet_far_enough_apart_to_stand_where_the_footholds_allow(
-        params) -> None:
-    """In a stop with ``stop_width_m`` (14 cm here) the crossover margin widens: on two stones
-    side by side the swing foot goes to the other stone, not beside the stance foot on its own
-    (where the OSC cannot stand on feet 6 cm apart); on one stone too narrow for it, the usual
-    margin still gives a plan."""
-    from runtime.geometry import Foothold
-
-    def rect(x0: float, x1: float, y0: float, y1: float) -> Foothold:
-        return Foothold.from_polygon(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
-
-    solver = MpfcSolver(params)
-    model = solver.model
-    step = np.array([0.0, -params.step_width_m])  # left stance, stepping in place
-    x_c = model.expm_a(-0.3) @ (model.vs.L0 @ step)
-    # the left foot at the left edge of a stone 14 cm across, another 30 cm to the right
-    here, there = rect(-0.15, 0.15, -0.12, 0.02), rect(-0.15, 0.15, -0.6, -0.3)
-    stance = np.zeros(3)
-    walk = solver.solve(x_c, "left", stance, 0.3, np.zeros(2), [here, there])
-    solver.reset()
-    stop = solver.solve(x_c, "left", stance, 0.3, np.zeros(2), [here, there],
-                        stop_width_m=0.14)
-    assert walk.has_plan and stop.has_plan
-    assert -walk.footsteps[0, 1] < 0.14  # nominal: beside, on its own stone
-    assert -stop.footsteps[0, 1] >= 0.14 - 1e-6
-    solver.reset()
-    narrow = solver.solve(x_c, "left", stance, 0.3, np.zeros(2), [here],
-                          stop_width_m=0.14)
-    assert narrow.has_plan and -narrow.footsteps[0, 1] >= params.crossover_margin_m - 1e-6
