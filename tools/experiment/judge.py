@@ -29,8 +29,8 @@ SPEED_FROM_S = 1.0
 GOAL_PAST_M = 0.15  # the pelvis this far onto the course's last surface: it has crossed
 HALT_BEFORE_FALL_S = 0.4  # a stop that began this long before a fall (a step) preceded it
 #: ... and with the CoM slower than this (horizontal, m/s): walking on Table I's stones at
-#: 0.375 m/s the long steps bring it to 0.8-0.9 m/s; a stop begun at 1.1-1.3 m/s came after a
-#: 0.7-1.0 m step that had already thrown the robot (measured, d_min 40-50 cm), not before
+#: 0.375 m/s the long steps bring it to 0.8-0.9 m/s; a stop begun at 1.1-1.4 m/s came after a
+#: 0.7-1.06 m step that had already thrown the robot (measured, d_min 40-50 cm), not before
 HALT_MAX_SPEED_MPS = 1.0
 
 

@@ -14,7 +14,6 @@ rates against the swept value; and trials per hour on this machine.
 from __future__ import annotations
 
 import json
-import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -214,16 +213,6 @@ def frange(text: str) -> list[float]:
     return [float(x) for x in text.split(",") if x.strip()]
 
 
-def wilson_interval(rate: float, n: int, z: float = 1.96) -> tuple[float, float]:
-    """The Wilson score interval of a success rate over ``n`` trials (95 % at z = 1.96)."""
-    if n <= 0:
-        return 0.0, 1.0
-    d = 1.0 + z * z / n
-    c = (rate + z * z / (2 * n)) / d
-    h = z * math.sqrt(rate * (1.0 - rate) / n + z * z / (4 * n * n)) / d
-    return max(0.0, c - h), min(1.0, c + h)
-
-
 def plot_sweeps(curves: Sequence[tuple[str, Path]], out_png: Path, title: str,
                 rate: str = "success_rate") -> Path:
     """Several sweeps on one plot (the paper's Fig. 12: Opt-T and Fixed-T, GT and
@@ -232,6 +221,7 @@ def plot_sweeps(curves: Sequence[tuple[str, Path]], out_png: Path, title: str,
     is +-13 %: a reader should see which differences are noise) and the trials per point in
     the legend."""
     import matplotlib
+    from scipy.stats import binomtest
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -243,7 +233,10 @@ def plot_sweeps(curves: Sequence[tuple[str, Path]], out_png: Path, title: str,
             continue
         ns = sorted({int(r["trials"]) for r in rows})
         per = f"{ns[0]}" if len(ns) == 1 else f"{ns[0]}-{ns[-1]}"
-        band = np.array([wilson_interval(r[rate], r["trials"]) for r in rows])  # (P, 2)
+        # Wilson score intervals (scipy's)
+        cis = [binomtest(round(r[rate] * r["trials"]), r["trials"]).proportion_ci(
+            0.95, method="wilson") for r in rows]
+        band = np.array([(ci.low, ci.high) for ci in cis])  # (P, 2)
         y = np.array([r[rate] for r in rows])
         ax.errorbar([100 * r["value"] for r in rows], 100 * y,
                     yerr=100 * np.array([y - band[:, 0], band[:, 1] - y]), fmt="o-",
