@@ -31,6 +31,7 @@ a ValueError that says so.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -222,18 +223,22 @@ class Foothold:
         beta, alpha = self.plane_xy
         return float(alpha + beta @ np.asarray(p_xy, dtype=float)[:2])
 
-    def eroded(self, half_x: float, half_y: float) -> Foothold | None:
-        """The centres of an axis-aligned ``2 half_x`` x ``2 half_y`` rectangle wholly inside
-        this vertical-walled foothold (a foot facing +x), or None when it fits nowhere.
+    def eroded(self, half_x: float, half_y: float, yaw: float = 0.0) -> Foothold | None:
+        """The centres of a ``2 half_x`` x ``2 half_y`` rectangle turned by ``yaw`` (a foot
+        facing that heading; 0: +x) wholly inside this vertical-walled foothold, or None when
+        it fits nowhere.
 
         The Minkowski difference of a convex polygon and a rectangle: each wall
-        ``a . p <= b`` moves inwards by the rectangle's support ``half_x |a_x| + half_y
-        |a_y|``; the new corners are where neighbouring walls meet, so the rows must run
-        along the edges in order (as ``from_ccw`` and ``from_polygon`` make them)."""
+        ``a . p <= b`` moves inwards by the rectangle's support ``half_x |a . u| + half_y
+        |a . v|`` (u, v the foot's axes); the new corners are where neighbouring walls meet,
+        so the rows must run along the edges in order (as ``from_ccw`` and ``from_polygon``
+        make them)."""
         a = self.A
         if np.any(a[:, 2] != 0.0):
             raise ValueError("only a foothold with vertical walls (A[:, 2] = 0) can be eroded")
-        b = self.b - (half_x * np.abs(a[:, 0]) + half_y * np.abs(a[:, 1]))
+        c, s = math.cos(yaw), math.sin(yaw)
+        along, across = a[:, 0] * c + a[:, 1] * s, a[:, 1] * c - a[:, 0] * s
+        b = self.b - (half_x * np.abs(along) + half_y * np.abs(across))
         k = len(b)
         verts = np.zeros((k, 2))
         for i in range(k):

@@ -145,6 +145,9 @@ class Terrain:
     #: the course's centre line (x, y) from the start to the end, for an operator that steers
     #: along it (``winding_beam``); empty: the x axis
     path: tuple[tuple[float, float], ...] = ()
+    #: per foothold, the heading a foot faces on it (rad; ``foot_eroded`` shrinks each for
+    #: a foot turned so): along a winding beam's pieces; empty: every foot faces +x
+    foot_headings: tuple[float, ...] = ()
 
     @property
     def landing_surfaces(self) -> tuple[Foothold, ...]:
@@ -164,14 +167,19 @@ class Terrain:
 
 def foot_eroded(terrain: Terrain, half_length: float, half_width: float) -> Terrain:
     """``terrain`` with its footholds shrunk for the foot (``Foothold.eroded``: the foot centres
-    for which a ``2 half_length`` x ``2 half_width`` foot facing +x lies wholly on the face);
-    footholds the foot does not fit on are dropped. The unshrunk ones stay as ``surfaces``."""
+    for which a ``2 half_length`` x ``2 half_width`` foot facing +x, or the foothold's
+    ``foot_headings``, lies wholly on the face); footholds the foot does not fit on are
+    dropped. The unshrunk ones stay as ``surfaces``."""
     if half_length <= 0.0 and half_width <= 0.0:
         return terrain
-    holds = [f.eroded(half_length, half_width) for f in terrain.footholds]
+    yaws = terrain.foot_headings or (0.0,) * len(terrain.footholds)
+    holds = [f.eroded(half_length, half_width, y) for f, y in zip(terrain.footholds, yaws,
+                                                                      strict=True)]
     params = {**terrain.params, "foot_half_size": (half_length, half_width)}
     return replace(terrain, footholds=tuple(f for f in holds if f is not None),
-                   surfaces=terrain.footholds, params=params)
+                   surfaces=terrain.footholds, params=params,
+                   foot_headings=tuple(y for f, y in zip(holds, yaws, strict=True)
+                                       if f is not None) if terrain.foot_headings else ())
 
 
 def _top_foothold(box: Box, margin: float) -> Foothold:
@@ -401,14 +409,39 @@ def winding_beam(
     boxes = (start, *pieces, end)
     path = ((-0.5, 0.0), *((float(p[0]), float(p[1])) for p in joints),
             (end_x + platform, end_y))
+    # Each joint's own foothold (ours): the pieces' faces, shrunk for a foot facing along
+    # them, stop short of a joint by the foot's half length, leaving gaps of ~16 cm along the
+    # beam where the surface is whole (a stop was measured there with ground truth). A
+    # rectangle about the joint along the turn's bisector, half length ``a``, lies on the two
+    # pieces' union where its half width c meets c cos(t/2) + a sin(t/2) <= w/2 - margin
+    # (turn t; beside a platform, heading along the piece, c <= w/2 - margin).
+    joint_holds, joint_yaws = [], []
+    a = 0.5 * width + 0.05
+    for i, p in enumerate(joints):
+        h0, h1 = math.radians(around[i]), math.radians(around[i + 1])
+        half = 0.5 * abs(h1 - h0)
+        platform_side = i in (0, segments)
+        yaw = h1 if i == 0 else h0 if i == segments else 0.5 * (h0 + h1)
+        room = 0.5 * width - margin
+        c = room if platform_side else (room - a * math.sin(half)) / math.cos(half)
+        if c <= 0.0:
+            continue
+        u = np.array((math.cos(yaw), math.sin(yaw)))
+        n = np.array((-u[1], u[0]))
+        corners = np.array([p - a * u - c * n, p + a * u - c * n, p + a * u + c * n,
+                            p - a * u + c * n])
+        joint_holds.append(Foothold.from_ccw(corners, (0.0, 0.0, 1.0), 0.0))
+        joint_yaws.append(yaw)
     params: dict[str, Any] = dict(
         width=width, segments=segments, segment_length=segment_length,
         turn_min_deg=turn_min_deg, turn_max_deg=turn_max_deg, max_heading_deg=max_heading_deg,
         seed=seed, platform=platform, pit_depth=pit_depth, margin=margin,
         headings_deg=headings)
     return Terrain("winding_beam", boxes=boxes,
-                   footholds=tuple(_top_foothold(b, margin) for b in boxes),
-                   ground_z=bottom, seed=seed, params=params, path=path)
+                   footholds=(*(_top_foothold(b, margin) for b in boxes), *joint_holds),
+                   ground_z=bottom, seed=seed, params=params, path=path,
+                   foot_headings=(0.0, *(math.radians(hd) for hd in headings), 0.0,
+                                  *joint_yaws))
 
 
 def blocks(

@@ -134,6 +134,21 @@ def test_erosion_leaves_the_centres_of_a_rectangle_that_fits() -> None:
         tilted_wall.eroded(0.1, 0.1)
 
 
+def test_erosion_for_a_turned_foot_shrinks_a_turned_rectangle_along_its_own_axes() -> None:
+    yaw = 0.5
+    u, n = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
+    corners = np.array([s * 0.3 * u + t * 0.15 * n for s, t in ((-1, -1), (1, -1), (1, 1),
+                                                                 (-1, 1))])
+    fh = Foothold.from_ccw(corners, (0.0, 0.0, 1.0), 0.0)
+    small = fh.eroded(0.1, 0.02, yaw)
+    assert small is not None
+    local = small.vertices_xy @ np.stack([u, n]).T  # in the rectangle's own axes
+    np.testing.assert_allclose(np.abs(local), [[0.2, 0.13]] * 4, atol=1e-12)
+    facing_x = fh.eroded(0.1, 0.02)  # a foot facing +x needs more room across the turned face
+    assert facing_x is not None
+    assert signed_area(facing_x.vertices_xy) < signed_area(small.vertices_xy)
+
+
 def test_a_foothold_set_round_trips_through_its_message() -> None:
     level = Foothold.from_ccw(np.array([[0.0, -0.5], [1.0, -0.5], [1.0, 0.5], [0.0, 0.5]]),
                               (0.0, 0.0, 1.0), 0.15)

@@ -86,3 +86,33 @@ def test_the_winding_beam_is_connected_end_to_end_with_its_turns_within_their_li
     assert course_end_x(t) == pytest.approx(path[-2, 0]) == pytest.approx(
         end.center[0] - 0.5 * end.size[0])
     assert terrain.winding_beam(seed=seed).boxes == terrain.winding_beam(seed=seed).boxes
+
+
+@pytest.mark.parametrize(("seed", "width"), [(0, 0.35), (3, 0.35), (1, 0.23)])
+def test_the_winding_beams_footholds_for_the_foot_run_along_it_joints_included(
+        seed: int, width: float) -> None:
+    """Shrunk for a foot facing along each piece (``foot_headings``), the footholds leave no
+    gap at a joint wider than 3 cm of the centre line, and a foot centred anywhere in one,
+    turned to its heading, stands wholly on a top (without the joints' own footholds, a foot
+    facing +x left ~20 cm gaps at every joint)."""
+    half = (0.10, 0.02)
+    t = terrain.generate("winding_beam", foot_half_size=half, width=width, seed=seed)
+    assert len(t.foot_headings) == len(t.footholds)
+    path = np.array(t.path)
+    covered = []
+    for a, b in itertools.pairwise(path[1:-1]):
+        for s in np.linspace(0.0, 1.0, 101):
+            p = a + s * (b - a)
+            covered.append(any(f.contains_xy(*p) for f in t.footholds))
+    gaps = [len(list(g)) for on, g in itertools.groupby(covered) if not on]
+    assert max(gaps, default=0) <= 3, gaps  # 1 cm apart
+    rng = np.random.default_rng(seed)
+    for f, yaw in zip(t.footholds, t.foot_headings, strict=True):
+        u, n = np.array((math.cos(yaw), math.sin(yaw))), np.array((-math.sin(yaw),
+                                                                     math.cos(yaw)))
+        v = f.vertices_xy
+        for w in rng.dirichlet(np.ones(len(v)), size=20):
+            c = w @ v  # a point inside the convex foothold
+            for sx, sy in itertools.product((-1.0, 1.0), repeat=2):
+                corner = c + sx * half[0] * u + sy * half[1] * n
+                assert t.height_at(*corner) == 0.0, (c, yaw)

@@ -13,7 +13,7 @@ from lcmtypes import ground_truth_t
 from runtime.config import HW_CONFIG_DIR
 from sim import terrain as terrain_mod
 from tools.experiment.courses import _prepare, _terrain_file, course_end_x
-from tools.experiment.operator import Operator, follow
+from tools.experiment.operator import YAW_RATE_MAX, Operator, follow
 
 
 def test_the_trials_terrain_file_carries_its_seed_dmin_and_width_and_loads(tmp_path) -> None:
@@ -66,6 +66,9 @@ def test_the_operator_steers_towards_the_centre_line_ahead_and_holds_heading_0_w
                                                                                   abs=1e-9)
     straight = Operator(0.375)  # no centre line: heading 0 along x, as before
     assert straight.command(0, _gt(0.9, 0.3, 0.2)).yaw_rate == pytest.approx(-0.2)
+    # never beyond the radio's range, which the processes' command inputs reject whole
+    assert straight.command(0, _gt(0.0, 0.0, 2.5)).yaw_rate == pytest.approx(-YAW_RATE_MAX)
+    assert winding.command(0, _gt(0.9, 0.0, -2.0)).yaw_rate == pytest.approx(YAW_RATE_MAX)
 
 
 def test_the_command_line_and_sweeps_take_the_new_courses(monkeypatch, tmp_path) -> None:

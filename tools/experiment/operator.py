@@ -17,10 +17,16 @@ from tools.experiment.judge import HEADING_GAIN
 #: the operator's lateral speed per metre off the centre line (1/s), and its bound
 LATERAL_GAIN = 0.0
 LATERAL_MAX_MPS = 0.2
-#: how far ahead on a winding course's centre line the operator aims (m): about a second of
-#: walking at 0.375 m/s, the heading loop's time constant (1 / HEADING_GAIN), so the turn into
-#: a segment is done about as the robot reaches it (chosen so, not tuned on trials)
-LOOKAHEAD_M = 0.4
+#: how far ahead on a winding course's centre line the operator aims (m): about 2.5 s of
+#: walking at 0.375 m/s, so the turn into a 1 m segment begins before the joint rather than
+#: after it. Measured on the 35 cm winding beam with ground truth (seed 0): at 0.4 m (a second,
+#: the heading loop's time constant 1 / HEADING_GAIN) the robot came off a 26 deg segment
+#: still turned 20 deg left, walked to the next one's edge and fell at 6.2 s; at 0.7 m fell at
+#: 11.4 s; at 1.0 m crossed, and so on seeds 1-5
+LOOKAHEAD_M = 1.0
+#: the radio's yaw-rate range (rad/s), as the processes' command inputs bound it
+#: (hw_config/processes.yaml): a command outside is rejected at the edge, not clipped there
+YAW_RATE_MAX = 1.5
 
 
 class Operator(Node):
@@ -51,7 +57,7 @@ class Operator(Node):
             w, x, y, z = gt.q[3:7]
             yaw = float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
             if self.path is None:
-                cmd.yaw_rate = -HEADING_GAIN * yaw
+                cmd.yaw_rate = float(np.clip(-HEADING_GAIN * yaw, -YAW_RATE_MAX, YAW_RATE_MAX))
                 # and sideways back onto the course's centre line y = 0 (the command is in
                 # the pelvis-yaw frame: the world's lateral speed, turned into it)
                 vy_world = float(np.clip(-self.lateral_gain * float(gt.q[1]),
@@ -59,7 +65,8 @@ class Operator(Node):
                 cmd.vy = float(np.cos(yaw) * vy_world)
                 return cmd
             heading, off, normal = follow(self.path, float(gt.q[0]), float(gt.q[1]))
-            cmd.yaw_rate = HEADING_GAIN * math.remainder(heading - yaw, 2.0 * math.pi)
+            turn = HEADING_GAIN * math.remainder(heading - yaw, 2.0 * math.pi)
+            cmd.yaw_rate = float(np.clip(turn, -YAW_RATE_MAX, YAW_RATE_MAX))
             v = float(np.clip(-self.lateral_gain * off, -LATERAL_MAX_MPS, LATERAL_MAX_MPS))
             # the world's lateral speed along the line's left normal, in the pelvis-yaw frame
             cmd.vy = float(v * (np.cos(yaw) * normal[1] - np.sin(yaw) * normal[0]))
