@@ -104,3 +104,29 @@ def test_a_stop_is_left_only_for_a_way_that_goes_on_past_the_next_foothold() -> 
     for _ in range(2):
         h.update([here, next_, last], (0.0, 0.0), (1.0, 0.0), 1.0, 0.06)
     assert h.state == Halt.RUNNING
+
+
+def test_the_compiled_probe_pass_marks_exactly_the_probes_inside_each_foothold() -> None:
+    """``_probe_hits`` (the look ahead's one compiled pass over footholds x probes) against
+    ``Foothold.contains_xy`` point by point, on random convex footholds of 3-8 corners, and
+    whether the stance point lies in each."""
+    from processes.mpfc.gait import _packed, _probe_hits
+
+    rng = np.random.default_rng(7)
+    holds = []
+    for _ in range(12):
+        c = rng.uniform(-1.0, 1.0, 2)
+        ang = np.sort(rng.uniform(0.0, 2 * np.pi, rng.integers(3, 9)))
+        r = rng.uniform(0.1, 0.5)
+        holds.append(Foothold.from_polygon(c + r * np.c_[np.cos(ang), np.sin(ang)]))
+    pts = rng.uniform(-1.5, 1.5, (4000, 2))
+    stance = holds[3].vertices_xy.mean(axis=0)
+    walls, offsets, sizes, boxes = _packed(holds)
+    hits = np.zeros((len(holds), len(pts)), dtype=np.bool_)
+    under = np.zeros(len(holds), dtype=np.bool_)
+    _probe_hits(pts, stance, walls, offsets, sizes, boxes, hits, under)
+    for k, f in enumerate(holds):
+        expected = np.array([f.contains_xy(x, y, 1e-9) for x, y in pts])
+        assert np.array_equal(hits[k], expected), k
+        assert under[k] == f.contains_xy(*stance, 1e-9)
+    assert under[3] and hits.any(axis=1).all()
