@@ -27,7 +27,9 @@ With ``params.guide`` (ours, issue 20), the SLIP guide's plan (``guide_plan_t``,
 the reachable footholds are narrowed to those within ``guide_margin_m`` of the guide's
 next N + 1 contact regions (the stance's and the MPFC's N footsteps'), all of them where that
 leaves none, and the desired velocity -- the nominal step of (18) -- is the guide's CoM
-velocity over the MPFC's horizon (``processes.mpfc.guide``). The stop for nothing ahead looks
+velocity over the MPFC's horizon, lengthened so one nominal step reaches the guide's next
+region where that is farther than ``guide_long_step_m`` (up to ``guide_max_speed_mps``;
+``processes.mpfc.guide``). The stop for nothing ahead looks
 at every reachable foothold, as without the guide. A radio's stand is never overridden.
 """
 
@@ -62,7 +64,7 @@ from processes.mpfc.gait import (
     foothold_ahead,
     within_height,
 )
-from processes.mpfc.guide import GuidedFootholds, fresh
+from processes.mpfc.guide import GuidedFootholds, fresh, guide_targets, reaching_velocity
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver, SupportTransfer
 from runtime.codecs import (
@@ -119,6 +121,13 @@ class Params:
     guide_max_age_s: float = spec(0.6, lo=0.0, lo_open=True, hi=10.0, unit="s")
     #: footholds within this of the guide's next contact regions are kept
     guide_margin_m: float = spec(0.10, lo=0.0, hi=2.0, unit="m")
+    #: the guide's velocity is lengthened so one nominal step reaches its next region, up to
+    #: this (``processes.mpfc.guide.reaching_velocity``; the command's range)
+    guide_max_speed_mps: float = spec(1.0, lo=0.0, hi=3.0, unit="m/s")
+    #: ... where that region is farther than this from the stance foot: the gaps between
+    #: Table I's footholds (shrunk for the foot) are 0.31-0.52 m, which the MPFC alone crosses
+    #: at the command (d_min 35-70 cm, seeds 2000-2009); a chasm's 0.59 m it does not
+    guide_long_step_m: float = spec(0.55, lo=0.0, hi=3.0, unit="m")
 
 
 class FootstepSolver(Protocol):
@@ -317,7 +326,11 @@ class MpfcNode(Node):
         self.guide_fallbacks += self.guide.fell_back
         if not self.standing_cmd:
             c, s = math.cos(yaw), math.sin(yaw)
-            vx, vy = plan.nominal_velocity  # world -> the command's frame, the pelvis yaw's
+            # world -> the command's frame, the pelvis yaw's
+            vx, vy = reaching_velocity(plan.nominal_velocity, self.stance_pos[:2],
+                                       guide_targets(plan, t, self.guide.count)[1],
+                                       self.params.t_s2s_s, self.guide.max_speed_mps,
+                                       self.guide.long_step_m)
             self.vdes_used = np.array([c * vx + s * vy, -s * vx + c * vy])
         return self.vdes_used, kept
 
@@ -443,7 +456,8 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: Mpfc
                                       "guide's plan, processes.slip_guide.process)")
         # the guide's regions for the MPFC's stance and its N footsteps
         guide = GuidedFootholds(gains.horizon_steps + 1, params.guide_margin_m,
-                                params.guide_max_age_s)
+                                params.guide_max_age_s, params.guide_max_speed_mps,
+                                params.guide_long_step_m)
     return MpfcNode(
         gains,
         "channel" if params.footholds == "channel" else "static",

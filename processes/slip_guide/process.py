@@ -3,7 +3,8 @@ the MPFC, a few times a second.
 
 Periodic (``rate_hz`` in hw_config/processes.yaml): each tick plans from the newest robot
 state (the CoM's position and velocity, ``processes.kinematics``) along the command (a
-straight path at the commanded speed and heading, ``reference_path``) over the newest
+straight path at the commanded speed and heading, ``reference_path``, on a line held in
+the world, ``ReferenceLine``) over the newest
 foothold set (S3's, or the sim's ground truth), and publishes the plan's steps, each with
 the foothold it is on, and the CoM's mean velocity over the MPFC's next steps
 (``guide_plan_t``; the MPFC's side: ``processes.mpfc.guide``). Without a state, footholds
@@ -69,6 +70,10 @@ class Params:
     #: the nominal velocity is the planned CoM's mean over this much of the plan: the MPFC's
     #: horizon, N = 2 steps of T_ss + T_ds (hw_config/gains/mpfc.yaml)
     velocity_window_s: float = spec(0.8, lo=0.0, lo_open=True, hi=20.0, unit="s")
+    #: the reference path is a line fixed in the world (``ReferenceLine``), laid anew only
+    #: when the commanded heading leaves it by more than this (a turn, not the operator's
+    #: few degrees of heading correction)
+    relay_turn_deg: float = spec(20.0, lo=0.0, hi=180.0, unit="deg")
 
 
 class CandidateCache:
@@ -92,6 +97,32 @@ class CandidateCache:
             self._cands = sample_footholds(footholds, self.spacing_m, self._box)
             self._src = footholds
         return self._cands
+
+
+class ReferenceLine:
+    """Where the reference path runs (ours): a line fixed in the world along the commanded
+    heading, laid through the CoM when the guide starts, when the command's speed changes or
+    its heading leaves the line's by more than ``relay_turn_rad``; each plan's path starts at
+    the CoM's foot on it. (From the CoM afresh every plan, the paths wandered with the robot
+    across the stepping stones' three columns and led the MPFC off the course's side at 9.3 s,
+    measured: the paper takes s* from "a higher level planner or remote operator", which
+    holds a line.)"""
+
+    def __init__(self, relay_turn_rad: float) -> None:
+        self.relay_turn_rad = relay_turn_rad
+        self.origin: np.ndarray | None = None
+        self.heading = 0.0
+        self.speed = math.nan
+        self.relays = 0  # lines laid
+
+    def start(self, com_xy: np.ndarray, heading: float, speed: float) -> np.ndarray:
+        """The path's start for a CoM at ``com_xy`` under a command along ``heading``."""
+        turned = abs(math.remainder(heading - self.heading, 2.0 * math.pi))
+        if self.origin is None or speed != self.speed or turned > self.relay_turn_rad:
+            self.origin, self.heading, self.speed = np.array(com_xy[:2], float), heading, speed
+            self.relays += 1
+        u = np.array([math.cos(self.heading), math.sin(self.heading)])
+        return self.origin + float((np.asarray(com_xy[:2]) - self.origin) @ u) * u
 
 
 def region_of(footholds: list[Foothold], xy: np.ndarray) -> int:
@@ -139,8 +170,9 @@ class SlipGuideNode(Node):
     trigger_role = None  # periodic
 
     def __init__(self, params: SlipParams, default_velocity: tuple[float, float],
-                 velocity_window_s: float) -> None:
+                 velocity_window_s: float, relay_turn_deg: float = 20.0) -> None:
         self.params = params
+        self.line = ReferenceLine(math.radians(relay_turn_deg))
         self.planner = SlipPlanner(params)
         self.kin = AlipKinematics()
         self.vdes = np.array(default_velocity, dtype=float)
@@ -194,8 +226,9 @@ class SlipGuideNode(Node):
         heading = yaw + math.atan2(self.vdes[1], self.vdes[0])
         speed = float(np.hypot(*self.vdes))
         holds = self.footholds
+        start = self.line.start(self.kin.com[:2], heading, speed)
         try:
-            s_ref, v_ref = reference_path(self.kin.com[:2], heading, speed, p,
+            s_ref, v_ref = reference_path(start, self.line.heading, speed, p,
                                           lambda xy: surface_height(holds, xy))
         except ValueError as exc:  # no ground under the whole path
             return no_guide_plan(utime, str(exc))
@@ -227,6 +260,7 @@ class SlipGuideNode(Node):
 
 def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: SlipParams) -> Node:
     """The guide from hw_config (gains: the SLIP planner's, in ``params.variant``)."""
-    node = SlipGuideNode(gains, params.default_velocity, params.velocity_window_s)
+    node = SlipGuideNode(gains, params.default_velocity, params.velocity_window_s,
+                         params.relay_turn_deg)
     node.name = proc.name
     return node

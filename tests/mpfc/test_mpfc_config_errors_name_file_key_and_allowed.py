@@ -24,7 +24,8 @@ def test_the_profile_as_written_reads_its_params_and_gains(tmp_path: Path) -> No
 
 
 ALL_PARAMS = ("dcm_gains, dcm_variant, default_velocity, foothold_max_height_m, footholds, "
-              "guide, guide_margin_m, guide_max_age_s, height_lookup, planner, variant")
+              "guide, guide_long_step_m, guide_margin_m, guide_max_age_s, guide_max_speed_mps, "
+              "height_lookup, planner, variant")
 
 
 @pytest.mark.parametrize(("params", "key", "problem", "allowed"), [

@@ -108,3 +108,36 @@ def test_the_narrowed_list_is_the_same_object_until_the_plan_or_its_next_steps_c
     assert cached.of(holds, plan, 0.55) == [holds[2]]  # the first step over, one left
     again = _plan([_square(0.6), _square(1.2)], [(0.0, 0.5), (0.4, 1.0)])
     assert cached.of(holds, again, 0.1) is not first  # a new plan: looked at afresh
+
+
+def test_the_guides_velocity_lengthens_to_reach_a_far_next_region_and_only_a_far_one() -> None:
+    """``reaching_velocity``: at a chasm's edge (the next region 0.59 m ahead) one nominal
+    step of T v reaches 5 cm into it, within the bound; a stone 0.4 m ahead (a gap the MPFC
+    crosses alone) leaves the guide's velocity as it is; so does standing on the region."""
+    from processes.mpfc.guide import reaching_velocity
+
+    def rect(x0, x1):
+        return Foothold.from_polygon(np.array([[x0, -1.0], [x1, -1.0], [x1, 1.0], [x0, 1.0]]))
+
+    near, far, stone = rect(-2.0, 0.0), rect(0.59, 3.0), rect(0.4, 0.6)
+    v = np.array([0.3, 0.0])
+    out = reaching_velocity(v, (0.0, 0.0), [near, far], 0.4, 2.0, 0.55)
+    np.testing.assert_allclose(out, [0.64 / 0.4, 0.0])
+    out = reaching_velocity(v, (0.0, 0.0), [near, far], 0.4, 1.0, 0.55)  # the bound
+    np.testing.assert_allclose(out, [1.0, 0.0])
+    np.testing.assert_allclose(reaching_velocity(v, (0.0, 0.0), [near, stone], 0.4, 1.0, 0.55),
+                               v)
+    np.testing.assert_allclose(reaching_velocity(v, (1.0, 0.0), [far], 0.4, 1.0, 0.55), v)
+    np.testing.assert_allclose(reaching_velocity(np.zeros(2), (0.0, 0.0), [far], 0.4, 1.0,
+                                                 0.55), np.zeros(2))  # a stand stays one
+
+
+def test_a_far_next_region_is_judged_from_the_region_underfoot_not_the_foot() -> None:
+    """On a stone with the foot at its back edge the next stone 0.4 m beyond the stone is
+    0.65 m from the foot: a gap the MPFC crosses alone, so the velocity stays."""
+    from processes.mpfc.guide import reaching_velocity
+
+    here, there = _square(0.0, side=0.3), _square(0.7, side=0.3)  # 0.4 m apart
+    v = np.array([0.375, 0.0])
+    np.testing.assert_allclose(reaching_velocity(v, (-0.1, 0.0), [here, there], 0.4, 1.0,
+                                                 0.55), v)
