@@ -22,7 +22,8 @@ def test_the_profile_as_written_reads_the_guide_variant(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("params", "key", "problem", "allowed"), [
     ({"varaint": "guide"}, "varaint", "unknown key",
-     "default_velocity, relay_turn_deg, variant, velocity_window_s"),
+     "corridor_m, default_velocity, line_return_s, relay_turn_deg, variant, "
+     "velocity_window_s"),
     ({"variant": "long"}, "variant", "'long' is not one of the allowed values",
      "guide, table1"),
     ({"velocity_window_s": 0.0}, "velocity_window_s", "out of range: 0.0", "(0.0, 20.0] s"),

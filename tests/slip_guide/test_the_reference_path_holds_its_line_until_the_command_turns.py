@@ -30,3 +30,26 @@ def test_the_path_starts_at_the_coms_foot_on_a_line_held_through_small_heading_c
     # a new commanded speed (a stand: 0) lays it anew too
     line.start(np.array([3.0, 0.3]), math.radians(30.0), 0.0)
     assert line.relays == 3
+
+
+def test_each_path_begins_at_the_com_and_comes_back_onto_the_line() -> None:
+    s_ref = np.column_stack([np.arange(11) * 0.05, np.zeros(11), np.full(11, 0.85)])
+    out, v = ReferenceLine.back_to_line(s_ref, np.array([0.0, 0.3]), 0.15, 1.0)
+    np.testing.assert_allclose(out[0, :2], [0.0, 0.3])  # at the CoM
+    np.testing.assert_allclose(out[7:, 1], 0.0)  # on the line from 1 s on (t = 1.05 s)
+    assert np.all(np.diff(out[:8, 1]) < 0.0)  # coming back, no jump beyond 0.045 m a sample
+    assert np.abs(np.diff(out[:, 1])).max() <= 0.3 * 0.15 + 1e-12
+    np.testing.assert_allclose(out[:, [0, 2]], s_ref[:, [0, 2]])  # along the line unchanged
+    np.testing.assert_allclose(v, np.diff(out, axis=0) / 0.15)
+
+
+def test_candidates_beyond_the_corridor_across_the_line_are_left_out() -> None:
+    from processes.slip_guide.candidates import Candidates
+
+    line = ReferenceLine(math.radians(20.0))
+    line.start(np.array([0.0, 0.0]), 0.0, 0.375)
+    pts = np.array([[0.5, 0.0, 0.0], [1.0, 0.3, 0.0], [1.0, -0.7, 0.0], [2.0, 0.7, 0.0]])
+    c = Candidates(pts, np.tile([0.0, 0.0, 1.0], (4, 1)), np.ones(4))
+    kept = line.within(c, 0.35)
+    np.testing.assert_allclose(kept.points, pts[:2])
+    assert line.within(c, 0.0) is c  # 0: no corridor
