@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 import numba
 import numpy as np
 
+from processes.footstep_search.footholds import WorldFootholds
 from runtime.geometry import Foothold
 
 LEFT, RIGHT = 0, 1
@@ -225,7 +226,16 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     n = float(np.hypot(d[0], d[1]))
     if n < 1e-9 or not footholds:
         return bool(footholds)
-    d = d / n
+    # the footholds padded into arrays once, for this look and the one past the next foothold
+    # (every foothold kept: a unit normal's z is >= -1)
+    world = WorldFootholds(list(footholds), -1.0)
+    return _way_on(world, stance_xy, d / n, swing_side, margin_m, seen, beyond)
+
+
+def _way_on(world: WorldFootholds, stance_xy: Sequence[float], d: np.ndarray,
+            swing_side: float, margin_m: float, seen: tuple[np.ndarray, np.ndarray] | None,
+            beyond: bool) -> bool:
+    """``foothold_ahead`` on the padded footholds, along the unit direction ``d``."""
     side = np.array([-d[1], d[0]])
     ahead = np.asarray(AHEAD_PROBES_M)
     across = np.asarray(SIDE_PROBES_M)
@@ -233,12 +243,13 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     pts = (stance + ahead[:, None, None] * d + across[None, :, None] * side).reshape(-1, 2)
     dist = np.repeat(ahead, len(across))  # each point's distance ahead
     lane = np.tile(np.arange(len(across)), len(ahead))  # ... and its lateral probe
-    walls, offsets, sizes, boxes = _packed(footholds)
-    hits = np.zeros((len(footholds), len(pts)), dtype=np.bool_)
-    underfoot = np.zeros(len(footholds), dtype=np.bool_)
-    _probe_hits(pts, stance, walls, offsets, sizes, boxes, hits, underfoot)
+    hits = np.zeros((len(world.index), len(pts)), dtype=np.bool_)
+    underfoot = np.zeros(len(world.index), dtype=np.bool_)
+    # (the vertex padding repeats a corner, so the padded rows' extremes are the boxes)
+    _probe_hits(pts, stance, world.F, world.c, world.V.min(axis=1), world.V.max(axis=1),
+                hits, underfoot)
     own_end, own_hits, others = 0.0, [], []
-    for k in range(len(footholds)):
+    for k in range(len(world.index)):
         hit = np.flatnonzero(hits[k])
         if underfoot[k]:  # the stance foot's own
             within = hit[dist[hit] <= STEP_REACH_M + 1e-9]
@@ -269,55 +280,32 @@ def foothold_ahead(footholds: Sequence[Foothold], stance_xy: Sequence[float],
     probes = np.concatenate(go)
     side_ok = math.copysign(1.0, swing_side) * across[lane[probes]] >= margin_m - 1e-9
     landing = pts[probes[side_ok][np.argmin(dist[probes[side_ok]])]]
-    return foothold_ahead(footholds, landing, direction_xy, -swing_side, margin_m, seen)
-
-
-def _packed(footholds: Sequence[Foothold]
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The footholds' walls a . p <= c as padded arrays for ``_probe_hits``: (F, K, 2) rows,
-    (F, K) offsets, the wall count of each and its bounding box (F, 4: lo x, lo y, hi x, hi
-    y; an empty foothold's box is empty)."""
-    k_max = max((len(f.halfspaces_xy[1]) for f in footholds), default=0)
-    walls = np.zeros((len(footholds), max(k_max, 1), 2))
-    offsets = np.zeros((len(footholds), max(k_max, 1)))
-    sizes = np.zeros(len(footholds), dtype=np.int64)
-    boxes = np.tile(np.array([np.inf, np.inf, -np.inf, -np.inf]), (len(footholds), 1))
-    for i, f in enumerate(footholds):
-        v = f.vertices_xy
-        if len(v) == 0:
-            continue
-        fa, fc = f.halfspaces_xy
-        walls[i, : len(fc)] = fa
-        offsets[i, : len(fc)] = fc
-        sizes[i] = len(fc)
-        boxes[i, :2], boxes[i, 2:] = v.min(axis=0), v.max(axis=0)
-    return walls, offsets, sizes, boxes
+    return _way_on(world, landing, d, -swing_side, margin_m, seen, False)
 
 
 @numba.njit(cache=True, nogil=True)
 def _probe_hits(pts: np.ndarray, stance: np.ndarray, walls: np.ndarray, offsets: np.ndarray,
-                sizes: np.ndarray, boxes: np.ndarray, hits: np.ndarray,
+                lo: np.ndarray, hi: np.ndarray, hits: np.ndarray,
                 underfoot: np.ndarray) -> None:
-    """``hits[f, p]``: probe p lies in foothold f (its bounding box first, then its walls,
-    1e-9 of slack); ``underfoot[f]``: so does the stance foot. One pass over footholds x
-    probes, compiled (a numpy pass per foothold cost 2-4 ms a touchdown, measured)."""
+    """``hits[f, p]``: probe p lies in foothold f (its bounding box ``lo``-``hi`` first, then
+    its walls ``walls[f] . p <= offsets[f]``, padded rows +inf, 1e-9 of slack);
+    ``underfoot[f]``: so does the stance foot. One pass over footholds x probes, compiled (a
+    numpy pass per foothold cost 2-4 ms a touchdown, measured)."""
     for f in range(walls.shape[0]):
-        lox, loy = boxes[f, 0] - 1e-9, boxes[f, 1] - 1e-9
-        hix, hiy = boxes[f, 2] + 1e-9, boxes[f, 3] + 1e-9
-        if sizes[f] == 0:
-            continue
         inside = True
-        for k in range(sizes[f]):
+        for k in range(walls.shape[1]):
             if walls[f, k, 0] * stance[0] + walls[f, k, 1] * stance[1] > offsets[f, k] + 1e-9:
                 inside = False
                 break
         underfoot[f] = inside
+        lox, loy = lo[f, 0] - 1e-9, lo[f, 1] - 1e-9
+        hix, hiy = hi[f, 0] + 1e-9, hi[f, 1] + 1e-9
         for p in range(pts.shape[0]):
             x, y = pts[p, 0], pts[p, 1]
             if x < lox or x > hix or y < loy or y > hiy:
                 continue
             ok = True
-            for k in range(sizes[f]):
+            for k in range(walls.shape[1]):
                 if walls[f, k, 0] * x + walls[f, k, 1] * y > offsets[f, k] + 1e-9:
                     ok = False
                     break

@@ -110,7 +110,8 @@ def test_the_compiled_probe_pass_marks_exactly_the_probes_inside_each_foothold()
     """``_probe_hits`` (the look ahead's one compiled pass over footholds x probes) against
     ``Foothold.contains_xy`` point by point, on random convex footholds of 3-8 corners, and
     whether the stance point lies in each."""
-    from processes.mpfc.gait import _packed, _probe_hits
+    from processes.footstep_search.footholds import WorldFootholds
+    from processes.mpfc.gait import _probe_hits
 
     rng = np.random.default_rng(7)
     holds = []
@@ -121,10 +122,12 @@ def test_the_compiled_probe_pass_marks_exactly_the_probes_inside_each_foothold()
         holds.append(Foothold.from_polygon(c + r * np.c_[np.cos(ang), np.sin(ang)]))
     pts = rng.uniform(-1.5, 1.5, (4000, 2))
     stance = holds[3].vertices_xy.mean(axis=0)
-    walls, offsets, sizes, boxes = _packed(holds)
+    world = WorldFootholds(holds, -1.0)  # padded as the look ahead pads them
+    assert list(world.index) == list(range(len(holds)))
     hits = np.zeros((len(holds), len(pts)), dtype=np.bool_)
     under = np.zeros(len(holds), dtype=np.bool_)
-    _probe_hits(pts, stance, walls, offsets, sizes, boxes, hits, under)
+    _probe_hits(pts, stance, world.F, world.c, world.V.min(axis=1), world.V.max(axis=1), hits,
+                under)
     for k, f in enumerate(holds):
         expected = np.array([f.contains_xy(x, y, 1e-9) for x, y in pts])
         assert np.array_equal(hits[k], expected), k
