@@ -93,7 +93,8 @@ def reaching_velocity(v: np.ndarray, stance_xy: Sequence[float],
         gap = point_gap_xy(g, stance_xy) if isinstance(g, Foothold) else float(
             np.hypot(*(np.asarray(g, float)[:2] - np.asarray(stance_xy, float)[:2])))
         if gap <= 0.0 and isinstance(g, Foothold):
-            on = on or g
+            if on is None:
+                on = g
         elif gap > 0.0:
             # (from a stone's back edge to the next is a gap plus the stone: measured from
             # the foot, the walk over stepping stones sped up to 1.1 m/s and fell)
@@ -138,6 +139,9 @@ class GuidedFootholds:
         self._plan: GuidePlan | None = None
         self._steps: tuple[int, ...] = ()
         self._kept: list[Foothold] = []
+        #: the fresh plan's next regions at the last call ([] without one), for
+        #: ``reaching_velocity``
+        self.targets: list[Foothold | np.ndarray] = []
         self.narrowed = False  # the last call kept fewer than all
         self.fell_back = False  # ... a fresh plan's narrowing left none, so all were kept
 
@@ -146,6 +150,7 @@ class GuidedFootholds:
         """The footholds the MPFC may choose among at ``t_s``."""
         live = plan if plan is not None and fresh(plan, t_s, self.max_age_s) else None
         steps, targets = guide_targets(live, t_s, self.count) if live else ((), [])
+        self.targets = targets
         if footholds is not self._src or live is not self._plan or steps != self._steps:
             near = _near(footholds, targets, self.margin_m) if targets else []
             self._kept = near or footholds

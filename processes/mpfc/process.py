@@ -64,7 +64,7 @@ from processes.mpfc.gait import (
     foothold_ahead,
     within_height,
 )
-from processes.mpfc.guide import GuidedFootholds, fresh, guide_targets, reaching_velocity
+from processes.mpfc.guide import GuidedFootholds, fresh, reaching_velocity
 from processes.mpfc.params import MpfcParams
 from processes.mpfc.solver import MpfcSolution, MpfcSolver, SupportTransfer
 from runtime.codecs import (
@@ -328,9 +328,8 @@ class MpfcNode(Node):
             c, s = math.cos(yaw), math.sin(yaw)
             # world -> the command's frame, the pelvis yaw's
             vx, vy = reaching_velocity(plan.nominal_velocity, self.stance_pos[:2],
-                                       guide_targets(plan, t, self.guide.count)[1],
-                                       self.params.t_s2s_s, self.guide.max_speed_mps,
-                                       self.guide.long_step_m)
+                                       self.guide.targets, self.params.t_s2s_s,
+                                       self.guide.max_speed_mps, self.guide.long_step_m)
             self.vdes_used = np.array([c * vx + s * vy, -s * vx + c * vy])
         return self.vdes_used, kept
 
