@@ -60,9 +60,10 @@ class OscDebug:
     task_errors: list[float] = field(default_factory=list)
 
 
-def support_share(points: Any, p: tuple[float, float]) -> float:
+def support_share(points: Any, *at: tuple[float, float]) -> float:
     """The largest share of the weight every one of ``points`` (x, y, ...) can carry with the
-    centre of pressure at ``p``: the largest w with p = sum(l_i p_i), sum(l_i) = 1, l_i >= w.
+    centre of pressure at ``p``, the least over the points ``at`` (one hull for all of them):
+    the largest w with p = sum(l_i p_i), sum(l_i) = 1, l_i >= w.
     That set is the points' hull shrunk towards their centroid c by 1 - n w, so w is the
     least, over the hull's edges, of p's distance to the edge over c's, divided by n
     (negative: p outside the hull; 1 / n at the centroid). Ours, for the hand-over to
@@ -96,12 +97,12 @@ def support_share(points: Any, p: tuple[float, float]) -> float:
     share = math.inf
     for k in range(len(hull)):
         a, b = hull[k], hull[(k + 1) % len(hull)]
-        # inward distances (times the edge's length) of p and of the centroid
-        dp = cross(a, b, (p[0], p[1]))
+        # inward distances (times the edge's length) of each p and of the centroid
         dc = cross(a, b, (cx, cy))
         if dc <= 0.0:
             return -1.0
-        share = min(share, dp / (n * dc))
+        for p in at:
+            share = min(share, cross(a, b, (p[0], p[1])) / (n * dc))
     return share
 
 
@@ -385,8 +386,7 @@ class OscController:
         inv_omega = math.sqrt(max(z, 0.3) / 9.81)
         com = (m.com_l[0], m.com_l[1])
         cp = (com[0] + vx * inv_omega, com[1] + vy * inv_omega)
-        return (support_share(pts, com) >= STAND_MIN_SHARE
-                and support_share(pts, cp) >= STAND_MIN_SHARE)
+        return support_share(pts, com, cp) >= STAND_MIN_SHARE
 
     def _safe(self, q: np.ndarray, v: np.ndarray, reason: str, t0: float) -> tuple[
             np.ndarray, OscDebug]:

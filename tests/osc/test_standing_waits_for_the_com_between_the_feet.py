@@ -70,3 +70,10 @@ def test_the_share_does_not_depend_on_the_feet_heading():
     turned = [(c * x - s * y, s * x + c * y, 0.0) for x, y, _ in pts]
     assert support_share(turned, (c * p[0] - s * p[1], s * p[0] + c * p[1])) == pytest.approx(
         support_share(pts, p))
+
+
+def test_several_points_share_one_hull_and_get_the_least_share():
+    pts = blades((2.095, 0.092), (1.950, -0.008))
+    com, cp = (2.122, 0.049), (2.03, 0.04)
+    assert support_share(pts, com, cp) == pytest.approx(
+        min(support_share(pts, com), support_share(pts, cp)))
