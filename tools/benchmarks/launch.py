@@ -44,8 +44,9 @@ PRECHECK = "precheck (start-up)"
 def _name(p: psutil.Process) -> str:
     """Which part of the stack a process is, from its command line."""
     c = p.cmdline()
-    if "run" in c:
-        return c[c.index("run") + 1]
+    for entry in ("run", "runtime.run"):  # `cassie run NAME`, `python -m runtime.run NAME`
+        if entry in c and c.index(entry) + 1 < len(c):
+            return c[c.index(entry) + 1]
     if any("lcm-logger" in x for x in c):
         return "lcm_logger"
     if "log" in c and "tools.cli" in c:
