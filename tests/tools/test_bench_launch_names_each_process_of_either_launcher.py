@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 import psutil
 import pytest
@@ -19,7 +20,13 @@ def test_a_stack_process_is_named_after_its_process_entry(launcher):
     proc = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)", *launcher,
                              "osc", "--profile", "hw_config/sim.yaml"])
     try:
-        assert _name(psutil.Process(proc.pid)) == "osc"
+        # Popen returns once exec has closed the child's pipes, which can be before the kernel
+        # has set the new argument list: until then the command line reads empty, and _name
+        # says it does not know yet rather than guess
+        deadline = time.monotonic() + 10.0
+        while (name := _name(psutil.Process(proc.pid))) is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert name == "osc"
     finally:
         proc.kill()
         proc.wait()

@@ -41,9 +41,12 @@ from tools.benchmarks.common import (
 PRECHECK = "precheck (start-up)"
 
 
-def _name(p: psutil.Process) -> str:
-    """Which part of the stack a process is, from its command line."""
+def _name(p: psutil.Process) -> str | None:
+    """Which part of the stack a process is, from its command line; None while it has none
+    to read (a child whose exec the kernel is still finishing, or a zombie)."""
     c = p.cmdline()
+    if not c:
+        return None
     for entry in ("run", "runtime.run"):  # `cassie run NAME`, `python -m runtime.run NAME`
         if entry in c and c.index(entry) + 1 < len(c):
             return c[c.index(entry) + 1]
@@ -82,7 +85,10 @@ def run_launch(tree: Path, profile: str, duration_s: float, log_dir: Path,
         for pr in procs:
             try:
                 t = pr.cpu_times()
-                rec = seen.setdefault(pr.pid, {"name": _name(pr), "first": time.monotonic()})
+                rec = seen.setdefault(pr.pid, {"name": pr.name(), "first": time.monotonic()})
+                # named again at every sample: a child caught between fork and exec reads as
+                # its parent (or as nothing); the name it ends with is the one it runs as
+                rec["name"] = _name(pr) or rec["name"]
                 rec["cpu_s"] = t.user + t.system
                 rec["last"] = time.monotonic()
             except psutil.Error:
