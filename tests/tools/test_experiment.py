@@ -157,6 +157,8 @@ def test_a_fall_counts_as_stopped_only_when_the_stop_came_a_step_before_it():
     # ... or with the CoM already thrown (1.3 m/s) by the step before: not the stop's fall
     assert Trial(**base, halt_s=4.0, halt_speed_mps=0.8).fell_while_stopped
     assert not Trial(**base, halt_s=4.0, halt_speed_mps=1.3).fell_while_stopped
+    # ... or with a foot already on a stone's edge (off its true face): falling already
+    assert not Trial(**base, halt_s=4.0, halt_feet_on_footholds=False).fell_while_stopped
 
 
 def test_the_judge_reads_the_coms_speed_at_a_given_time():
@@ -175,6 +177,25 @@ def test_the_judge_reads_the_coms_speed_at_a_given_time():
         j(int(k * 1e6), gt)
     assert abs(j.speed_at(0.5) - 0.5) < 1e-12 and abs(j.speed_at(2.0) - 1.2) < 1e-12
     assert abs(j.speed_at(9.0) - 1.2) < 1e-12
+
+
+def test_the_judge_tells_whether_both_feet_were_on_footholds_at_a_given_time():
+    """``Judge.feet_on_footholds_at``: the sim's two foot positions in the first message at or
+    after the time (a stop's start), each on a true foothold or not."""
+    from types import SimpleNamespace
+
+    from tools.experiment.judge import Judge
+
+    stone = Foothold.from_polygon(np.array([[0.0, 0.0], [0.4, 0.0], [0.4, 0.4], [0.0, 0.4]]))
+    j = Judge([stone], walk_start_s=0.0)
+    # both on the stone, then the right foot 3 cm past its edge, then back on
+    for k, yr in enumerate((0.1, 0.43, 0.2)):
+        gt = SimpleNamespace(header=SimpleNamespace(utime=int(k * 1e6)), q=[0.2, 0.2, 1.0],
+                             com_vel=[0.0, 0.0, 0.0], foot_contact=[True, True],
+                             foot_pos=[[0.2, 0.3, 0.0], [0.2, yr, 0.0]])
+        j(int(k * 1e6), gt)
+    assert j.feet_on_footholds_at(0.0) and j.feet_on_footholds_at(2.0)
+    assert not j.feet_on_footholds_at(0.5) and not j.feet_on_footholds_at(1.0)
 
 
 def test_a_robot_that_stops_at_the_start_for_want_of_footholds_stands_and_the_trial_ends():

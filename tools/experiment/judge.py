@@ -64,15 +64,18 @@ class Trial:
     halt_on_foothold: bool = True
     #: the CoM's horizontal speed when that stop began (m/s; 0 without a stop)
     halt_speed_mps: float = 0.0
+    #: both feet on true footholds (the sim's, less 2 cm) when that stop began: a stop with a
+    #: foot already on an edge or in the pit is one the robot began falling into
+    halt_feet_on_footholds: bool = True
 
     @property
     def fell_while_stopped(self) -> bool:
         """A fall in a stop the MPFC began a step or more before it (nothing ahead was
-        reachable) with the stance foot on the course and the CoM at a walking speed, not one
-        that the fall itself began (a robot on the ground, a foot off the beam or a CoM thrown
-        at 1.3 m/s by the step before has nothing ahead either)."""
+        reachable) with both feet on the course and the CoM at a walking speed, not one that
+        the fall itself began (a robot on the ground, a foot off the beam or on a stone's edge
+        or a CoM thrown at 1.3 m/s by the step before has nothing ahead either)."""
         return fell_in_a_stop(self.fell, self.fall_time_s, self.halt_s, self.halt_on_foothold,
-                              self.halt_speed_mps)
+                              self.halt_speed_mps, self.halt_feet_on_footholds)
     wall_s: float = 0.0
     mode: str = "harness"  # harness (deterministic, one process), lockstep or realtime (launch)
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)  # live runs: report's loops
@@ -83,9 +86,9 @@ class Trial:
 
 
 def fell_in_a_stop(fell: bool, fall_time_s: float, halt_s: float, on_foothold: bool,
-                   halt_speed_mps: float) -> bool:
+                   halt_speed_mps: float, feet_on_footholds: bool = True) -> bool:
     """``Trial.fell_while_stopped`` from its fields (also for sweep records)."""
-    return (fell and on_foothold and halt_speed_mps <= HALT_MAX_SPEED_MPS
+    return (fell and on_foothold and feet_on_footholds and halt_speed_mps <= HALT_MAX_SPEED_MPS
             and 0.0 <= halt_s <= fall_time_s - HALT_BEFORE_FALL_S)
 
 
@@ -113,6 +116,7 @@ class Judge:
         self.lift_t = [-1.0, -1.0]  # when each foot last left the ground
         self.touchdowns: list[tuple[float, np.ndarray]] = []
         self._speed: list[tuple[float, float]] = []  # (t, CoM horizontal speed) per message
+        self._feet: list[tuple[float, float, float, float]] = []  # (xl, yl, xr, yr) ...
 
     def speed_at(self, t: float) -> float:
         """The CoM's horizontal speed at sim time ``t`` (the first message at or after it;
@@ -122,9 +126,21 @@ class Judge:
         i = bisect.bisect_left(self._speed, (t, -math.inf))
         return self._speed[min(i, len(self._speed) - 1)][1]
 
+    def feet_on_footholds_at(self, t: float) -> bool:
+        """Both feet (the sim's foot positions in the first message at or after sim time
+        ``t``) lie on a foothold of the course (True without footholds or messages)."""
+        if not self.footholds or not self._speed:
+            return True
+        i = min(bisect.bisect_left(self._speed, (t, -math.inf)), len(self._speed) - 1)
+        feet = self._feet[i]
+        return all(any(f.contains_xy(x, y) for f in self.footholds)
+                   for x, y in ((feet[0], feet[1]), (feet[2], feet[3])))
+
     def __call__(self, t_us: int, gt: Any) -> None:
         t = gt.header.utime * 1e-6
         self._speed.append((t, math.hypot(gt.com_vel[0], gt.com_vel[1])))
+        fl, fr = gt.foot_pos[0], gt.foot_pos[1]
+        self._feet.append((fl[0], fl[1], fr[0], fr[1]))
         z = gt.q[2] - self.ground(gt.q[0], gt.q[1])
         self.min_z = min(self.min_z, z)
         if z < FALL_HEIGHT_M and self.fall_t is None:

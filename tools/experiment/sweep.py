@@ -137,12 +137,14 @@ def run_sweep(specs: Sequence[TrialSpec], out_dir: Path, jobs: int | None = None
 
 def _fell_while_stopped(r: dict[str, Any]) -> bool:
     """``Trial.fell_while_stopped`` of a trial record (False for records made before it;
-    records from before ``halt_speed_mps`` count every stop's speed as a walking one)."""
+    records from before ``halt_speed_mps`` count every stop's speed as a walking one, and from
+    before ``halt_feet_on_footholds`` both feet as on the course)."""
     from tools.experiment.judge import fell_in_a_stop
 
     return fell_in_a_stop(bool(r["fell"]), float(r["fall_time_s"]), float(r.get("halt_s", -1.0)),
                           bool(r.get("halt_on_foothold", True)),
-                          float(r.get("halt_speed_mps", 0.0)))
+                          float(r.get("halt_speed_mps", 0.0)),
+                          bool(r.get("halt_feet_on_footholds", True)))
 
 
 def summarise(trials: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:

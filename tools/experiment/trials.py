@@ -131,6 +131,7 @@ def run_trial(
                 trial.halt_s = float(c.get("halt_since_s", -1.0))
                 if trial.halt_s >= 0.0:
                     trial.halt_speed_mps = judge.speed_at(trial.halt_s)
+                    trial.halt_feet_on_footholds = judge.feet_on_footholds_at(trial.halt_s)
                 hx, hy = float(c.get("halt_x", math.nan)), float(c.get("halt_y", math.nan))
                 if math.isfinite(hx):  # the stop began with the stance foot on the course?
                     trial.halt_on_foothold = any(f.contains_xy(hx, hy)
