@@ -32,8 +32,12 @@ from .walking import DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT, GaitPhase, WalkingCo
 from .walking import STANDING as GAIT_STANDING
 
 log = logging.getLogger(__name__)
-#: the narrowest stance the hand-over to standing takes (its pose: feet 27 cm apart)
-STAND_MIN_WIDTH_M = 0.10
+#: the narrowest stance the hand-over to standing takes (its pose: feet 27 cm apart). 10 cm
+#: before: a stop on one stone eroded by S3 ended with the feet 7-8 cm apart, the gait stepped
+#: in place for 2 s and fell (d_min 40 cm, seed 2002, perception); at 7 cm it stands there
+#: for the trial's last 10 s, and none of 19 other trials with a stop changed (5 cm on a
+#: stair tread held 2 s and tipped over sideways: measured)
+STAND_MIN_WIDTH_M = 0.07
 #: the least share of the weight the CoM and its capture point must leave every contact point
 #: for the hand-over to standing: the standing QP asks 15 N (``qp.standing_fz_min``) of each,
 #: 4.6 % of Cassie's 33 kg (side by side, 27 cm apart, it allows the CoM 6.5 cm fore or aft of
@@ -354,8 +358,8 @@ class OscController:
 
     def _feet_apart(self, width: float = STAND_MIN_WIDTH_M) -> bool:
         """The feet stand at least ``width`` apart across the blades (the standing controller
-        balances on the box of both feet: on a stop's feet 5 cm apart, on a stair tread, it
-        held for 2 s and then tipped over sideways, measured); narrower, the gait steps on."""
+        balances on the box of both feet: ``STAND_MIN_WIDTH_M``); narrower, the gait steps
+        on."""
         p = self.model.p_contact_l
         fx, fy = p[0][0] - p[1][0], p[0][1] - p[1][1]  # the left blade, rear to front
         n = math.hypot(fx, fy)
