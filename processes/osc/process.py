@@ -43,7 +43,8 @@ class OscNode(Node):
     trigger_policy = "newest"
 
     def __init__(self, params: OscParams, start: str = "walk",
-                 hold_until_plan: bool = False, stand_first_s: float = 0.0) -> None:
+                 hold_until_plan: bool = False, stand_first_s: float = 0.0,
+                 soft_start_s: float = 0.0) -> None:
         self.params = params
         #: off (zero torque, mode 3: the start-up holder keeps the robot) until the MPFC's
         #: first plan: the robot is let go only once the footstep planner is up ...
@@ -52,6 +53,9 @@ class OscNode(Node):
         #: holder, which the bridge releases after its release_after_s of standing, then free
         self._stand_first_us = round(stand_first_s * 1e6)
         self._walk_from_us: int | None = None if stand_first_s > 0.0 else 0
+        #: in the holder, the torques come on over this long from the first controlled tick
+        self._soft_start_us = round(soft_start_s * 1e6)
+        self._on_from_us: int | None = None
         self._first_state = True
         self._stand = command_t()
         self._stand.mode = 1
@@ -144,6 +148,14 @@ class OscNode(Node):
         if fb is not None:  # the MPFC's plans lost while walking: own steps in place
             plan = fb.step(t, q, v, plan, ctrl.mode)
         u, dbg = ctrl.update(t, q, v, plan, command)
+        if self._on_from_us is None:
+            self._on_from_us = utime
+        if (self._soft_start_us and utime - self._on_from_us < self._soft_start_us
+                and int(state.target_status) & STATUS_HOLDER_ENGAGED):
+            # the gantry start: standing's torques switched on at once against the pinned
+            # pelvis bounced both feet 6 cm off the ground within 70 ms and slid them 10-20
+            # cm forward; let go like that, Cassie fell backwards (live, 2026-12-07)
+            u = u * (max(utime - self._on_from_us, 0) / self._soft_start_us)
         torque = u.tolist()
         if not math.isfinite(sum(torque)):  # defence in depth: never publish a NaN torque
             torque = [0.0] * len(torque)
@@ -226,6 +238,8 @@ class Params:
     hold_until_plan: bool = False
     #: then stand this long (sim time) before it may walk
     stand_first_s: float = spec(0.0, lo=0.0, hi=60.0, unit="s")
+    #: in the holder, ramp the torques in over this long from the first controlled tick
+    soft_start_s: float = spec(0.0, lo=0.0, hi=5.0, unit="s")
 
 
 #: the gains file (``gains:``, hw_config/gains/osc.yaml), section by section
@@ -236,4 +250,4 @@ def make_node(proc: ProcessConfig, profile: Profile, params: Params, gains: OscG
     """The OSC of ``gains`` and ``params`` (``runtime.builder.build_node`` reads and checks
     both)."""
     return OscNode(OscParams.from_gains(gains), params.start, params.hold_until_plan,
-                   params.stand_first_s)
+                   params.stand_first_s, params.soft_start_s)

@@ -24,7 +24,7 @@ def test_params_and_gains_reach_the_node(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("params", "message"), [
     ({"gains_file": "gains/osc.yaml"}, "params.gains_file: unknown key (allowed: "
-                                       "hold_until_plan, stand_first_s, start)"),
+                                       "hold_until_plan, soft_start_s, stand_first_s, start)"),
     ({"start": "run"}, "params.start: 'run' is not one of the allowed values "
                        "(allowed: walk, stand)"),
     ({"hold_until_plan": "yes"}, "params.hold_until_plan: must be true or false, got 'yes' "

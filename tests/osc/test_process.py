@@ -169,3 +169,24 @@ def test_an_osc_restarted_mid_walk_walks_on_at_once_in_single_stance(q_stand):
     tq = d.sent["torque"][-1]
     assert d.node.controller.mode == WALKING and tq.mode == 0, tq.status
     assert any(t != 0.0 for t in tq.torque)
+
+
+def test_soft_start_ramps_the_torques_in_while_the_holder_holds(q_stand):
+    """``soft_start_s``: in the holder, the torques of the first controlled ticks are the
+    controller's scaled by the time since the first one over ``soft_start_s`` (switched on at
+    once against the pinned pelvis, standing bounced both feet off the ground: measured
+    live); once the robot is free, or after the ramp, they are the controller's own."""
+    soft, plain = _driver(soft_start_s=0.5), _driver()
+    for utime, held, scale in ((1_000, True, 0.0), (126_000, True, 0.25),
+                               (251_000, True, 0.5), (301_000, False, 1.0),
+                               (501_000, True, 1.0), (601_000, True, 1.0)):
+        soft.tick(state=_state(q_stand, utime, held))
+        plain.tick(state=_state(q_stand, utime, held))
+        want = np.asarray(plain.sent["torque"][-1].torque)
+        assert np.abs(want).max() > 1.0
+        np.testing.assert_allclose(soft.sent["torque"][-1].torque, scale * want, atol=1e-9)
+
+
+def test_a_bad_soft_start_value_names_the_key():
+    with pytest.raises(ConfigError, match="soft_start_s"):
+        build_node(_proc(soft_start_s=-1), _profile())
