@@ -35,7 +35,7 @@ log = logging.getLogger(__name__)
 #: the narrowest stance the hand-over to standing takes (its pose: feet 27 cm apart). 10 cm
 #: before: a stop on one stone eroded by S3 ended with the feet 7-8 cm apart, the gait stepped
 #: in place for 2 s and fell (d_min 40 cm, seed 2002, perception); at 7 cm it stands there
-#: for the trial's last 10 s, and none of 19 other trials with a stop changed (5 cm on a
+#: for the trial's last 10 s, and none of 20 other trials with a stop changed (5 cm on a
 #: stair tread held 2 s and tipped over sideways: measured)
 STAND_MIN_WIDTH_M = 0.07
 #: the least share of the weight the CoM and its capture point must leave every contact point

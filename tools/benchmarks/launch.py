@@ -85,10 +85,10 @@ def run_launch(tree: Path, profile: str, duration_s: float, log_dir: Path,
         for pr in procs:
             try:
                 t = pr.cpu_times()
-                rec = seen.setdefault(pr.pid, {"name": pr.name(), "first": time.monotonic()})
+                rec = seen.setdefault(pr.pid, {"first": time.monotonic()})
                 # named again at every sample: a child caught between fork and exec reads as
                 # its parent (or as nothing); the name it ends with is the one it runs as
-                rec["name"] = _name(pr) or rec["name"]
+                rec["name"] = _name(pr) or rec.get("name") or pr.name()
                 rec["cpu_s"] = t.user + t.system
                 rec["last"] = time.monotonic()
             except psutil.Error:

@@ -116,25 +116,29 @@ class Judge:
         self.lift_t = [-1.0, -1.0]  # when each foot last left the ground
         self.touchdowns: list[tuple[float, np.ndarray]] = []
         self._speed: list[tuple[float, float]] = []  # (t, CoM horizontal speed) per message
-        self._feet: list[tuple[float, float, float, float]] = []  # (xl, yl, xr, yr) ...
+        self._feet: list[tuple[float, float, float, float]] = []  # (xl, yl, xr, yr) ditto
+
+    def on_foothold(self, x: float, y: float) -> bool:
+        """(x, y) lies on a foothold of the course (False without footholds)."""
+        return any(f.contains_xy(x, y) for f in self.footholds)
+
+    def _message_at(self, t: float) -> int:
+        """Index of the first message at or after sim time ``t`` (the last one past them);
+        only with messages."""
+        return min(bisect.bisect_left(self._speed, (t, -math.inf)), len(self._speed) - 1)
 
     def speed_at(self, t: float) -> float:
         """The CoM's horizontal speed at sim time ``t`` (the first message at or after it;
         0 before any)."""
-        if not self._speed:
-            return 0.0
-        i = bisect.bisect_left(self._speed, (t, -math.inf))
-        return self._speed[min(i, len(self._speed) - 1)][1]
+        return self._speed[self._message_at(t)][1] if self._speed else 0.0
 
     def feet_on_footholds_at(self, t: float) -> bool:
         """Both feet (the sim's foot positions in the first message at or after sim time
         ``t``) lie on a foothold of the course (True without footholds or messages)."""
         if not self.footholds or not self._speed:
             return True
-        i = min(bisect.bisect_left(self._speed, (t, -math.inf)), len(self._speed) - 1)
-        feet = self._feet[i]
-        return all(any(f.contains_xy(x, y) for f in self.footholds)
-                   for x, y in ((feet[0], feet[1]), (feet[2], feet[3])))
+        xl, yl, xr, yr = self._feet[self._message_at(t)]
+        return self.on_foothold(xl, yl) and self.on_foothold(xr, yr)
 
     def __call__(self, t_us: int, gt: Any) -> None:
         t = gt.header.utime * 1e-6
@@ -177,9 +181,7 @@ class Judge:
     def outside(self) -> int:
         if not self.footholds:
             return 0
-        return sum(
-            not any(f.contains_xy(p[0], p[1]) for f in self.footholds) for _, p in self.touchdowns
-        )
+        return sum(not self.on_foothold(p[0], p[1]) for _, p in self.touchdowns)
 
 
 def _verdict(trial: Trial, judge: Judge, launch: list[str]) -> Trial:

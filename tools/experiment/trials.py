@@ -134,8 +134,7 @@ def run_trial(
                     trial.halt_feet_on_footholds = judge.feet_on_footholds_at(trial.halt_s)
                 hx, hy = float(c.get("halt_x", math.nan)), float(c.get("halt_y", math.nan))
                 if math.isfinite(hx):  # the stop began with the stance foot on the course?
-                    trial.halt_on_foothold = any(f.contains_xy(hx, hy)
-                                                 for f in judge.footholds)
+                    trial.halt_on_foothold = judge.on_foothold(hx, hy)
                 if c.get("guided"):
                     trial.notes.append(guided_note(c))
             elif b.node.name == GUIDE_PROCESS:
