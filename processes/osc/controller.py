@@ -38,6 +38,11 @@ log = logging.getLogger(__name__)
 #: for the trial's last 10 s, and none of 20 other trials with a stop changed (5 cm on a
 #: stair tread held 2 s and tipped over sideways: measured)
 STAND_MIN_WIDTH_M = 0.07
+#: walking out of standing takes the leading foot's floor (``WalkingController.from_standing``)
+#: once the standing controller has held the robot this long: the legs' leaf springs are
+#: loaded then (after 50 ms of standing the unloaded foot lifted; the harness starts at the
+#: unloaded IK pose and hands over at its second tick, 0.5 ms, where it never did: measured)
+STOOD_LOADED_S = 0.02
 #: the least share of the weight the CoM and its capture point must leave every contact point
 #: for the hand-over to standing: the standing QP asks 15 N (``qp.standing_fz_min``) of each,
 #: 4.6 % of Cassie's 33 kg (side by side, 27 cm apart, it allows the CoM 6.5 cm fore or aft of
@@ -237,8 +242,10 @@ class OscController:
                 stance = self.standing.add_tasks(self.rows, self.log, m, q, v, t_s)
             self.stance = stance
             fz_min = self.params.qp.standing_fz_min if self.mode == STANDING else 0.0
+            walking = self.mode == WALKING
             res = self.qp.solve(self.rows, stance, fz_min,
-                                self.walking.fz_max if self.mode == WALKING else None)
+                                self.walking.fz_max if walking else None,
+                                self.walking.fz_floor if walking else None)
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:
             # a degenerate state (singular matrices, a malformed plan): damp, never crash
             self.safety.latch(f"controller error: {type(e).__name__}: {e}")
@@ -296,7 +303,8 @@ class OscController:
             # hand over only in double stance: the robot stands on both feet, so does the plan
             if ok and int(plan.gait_state) in (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT):
                 self.mode = WALKING
-                self.walking.reset()
+                self.walking.reset(from_standing=self.standing.started
+                                   and t - self.standing.t0 >= STOOD_LOADED_S)
             self.waiting = ok and self.mode == STANDING
         elif self.mode == WALKING:
             # a plan without a header (a bare object, in tests) counts as fresh

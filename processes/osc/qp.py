@@ -179,6 +179,8 @@ class _Solver:
         self.fz_max = fz_max
         self._bounds_changed = False
         self._caps_default = True  # x_u holds fz_max on every point
+        self.fz_min = fz_min
+        self._floors_default = True  # x_l holds fz_min on every point
         self._fz_idx_list = [nu + 2 + 3 * i for i in range(nc)]
         # the compiled active-set solver's constraint rows and scratch
         self._Gc = np.ascontiguousarray(self.G)
@@ -210,6 +212,23 @@ class _Solver:
                 self._bounds_changed = True
         self._caps_default = default
 
+    def set_fz_min(self, floors: Sequence[float] | None) -> None:
+        """Per-point lower bounds on the normal force (N) for the next solves (one per stance
+        point, in row order; None: ``fz_min`` on every point): the first double stance out
+        of standing keeps the leading foot loaded."""
+        if floors is None:
+            if self._floors_default:
+                return
+            floors = [self.fz_min] * len(self._fz_idx_list)
+        x_l = self.x_l
+        for i, floor in enumerate(floors):
+            j = self._fz_idx_list[i]
+            floor = max(floor, self.fz_min)
+            if x_l[j] != floor:
+                x_l[j] = floor
+                self._bounds_changed = True
+        self._floors_default = all(f <= self.fz_min for f in floors)
+
     def closed_form(self, P: np.ndarray, c: np.ndarray) -> np.ndarray | None:
         """The QP's exact optimum without piqp when it can be certified, else None.
 
@@ -233,7 +252,7 @@ class _Solver:
                 self.solver.setup(P, c, None, None, None, None, None, self.x_l, self.x_u)
             self.ready = True
         elif self._bounds_changed:
-            self.solver.update(P=P, c=c, x_u=self.x_u)
+            self.solver.update(P=P, c=c, x_l=self.x_l, x_u=self.x_u)
         else:
             self.solver.update(P=P, c=c)
         self._bounds_changed = False
@@ -319,7 +338,8 @@ class OscQP:
             self._solver(nc, fz_min)
 
     def solve(self, tasks: TaskRows, stance: np.ndarray, fz_min: float = 0.0,
-              fz_max: np.ndarray | None = None) -> QpResult:
+              fz_max: np.ndarray | None = None,
+              fz_floor: np.ndarray | None = None) -> QpResult:
         """Build the condensed QP for the model's current state and solve it.
 
         ``stance`` is a bool mask over the 4 foot contact points (left front/rear, right
@@ -340,6 +360,11 @@ class OscQP:
         else:
             caps = fz_max.tolist()
             solver.set_fz_max([caps[i] for i in points])
+        if fz_floor is None:
+            solver.set_fz_min(None)
+        else:
+            floors = fz_floor.tolist()
+            solver.set_fz_min([floors[i] for i in points])
         self._last = (P, c, solver)
         t1 = time.perf_counter()
         x = solver.closed_form(P, c) if self.closed_form_first else None

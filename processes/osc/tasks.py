@@ -73,6 +73,8 @@ class WalkingGains:
     swing_lift_tau: float = spec(0.25, lo=0.1, hi=0.45)  # fraction of T
     swing_approach_tau: float = spec(0.8, lo=0.55, hi=0.9)  # fraction of T
     swing_toe: str = spec("plane", choices=SWING_TOE_MODES)
+    start_fz_min: float = spec(15.0, lo=0.0, hi=500.0, unit="N")  # WalkingParams
+    start_unload_s: float = spec(0.15, lo=0.0, hi=2.0, unit="s")  # WalkingParams
 
 
 @dataclass(frozen=True)
@@ -168,6 +170,11 @@ class WalkingParams:
     swing_approach_tau: float = 0.8  # step up: the approach point's time, fraction of T
     #: swing toe target: "plane" = foot at atan(k_x) (Section V-C), "level" = foot level
     swing_toe: str = "plane"
+    #: walking out of standing (ours): the first double stance's leading foot carries at
+    #: least its standing share (m g / 4 a point) falling to this over ``start_unload_s``
+    #: (``WalkingController._double_stance``)
+    start_fz_min: float = 15.0
+    start_unload_s: float = 0.15
 
 
 @dataclass

@@ -431,6 +431,12 @@ class WalkingController:
         self.phase: GaitPhase | None = None
         #: per-contact-point normal-force caps for the QP (inf: only the configured limit)
         self.fz_max = np.full(4, np.inf)
+        #: per-contact-point normal-force floors (None: none beyond the QP's)
+        self.fz_floor: np.ndarray | None = None
+        self._floor = np.zeros(4)
+        #: this walk began from the standing controller (``_double_stance``)
+        self.from_standing = False
+        self._start_t: float | None = None
         self._errs = np.zeros(len(SINGLE_STANCE_TASKS))
         # compile the kernel (or load it from numba's on-disk cache) now, not on the first tick
         kin, rows = np.zeros((20, 3)), np.zeros((16, 4))
@@ -451,12 +457,32 @@ class WalkingController:
         assumes it is. Sets the caps and the moment cost; returns f when the CoP moment rows
         are wanted (``tasks.walking_rows`` writes them), else -1."""
         self.fz_max[:] = np.inf
+        self.fz_floor = None
         if int(plan.gait_state) not in (DOUBLE_AFTER_LEFT, DOUBLE_AFTER_RIGHT):
             return -1.0  # a swing past its planned touchdown: both feet may carry the robot
         t0, t1 = float(plan.prev_switch_time_s), float(plan.next_switch_time_s)
         f = min(max((t - t0) / (t1 - t0), 0.0), 1.0) if t1 > t0 else 1.0
         trail = 1 - stance
         self.fz_max[2 * trail : 2 * trail + 2] = 0.5 * (1.0 - f) * m.mass * 9.81  # 2 points
+        if self.from_standing and t1 - t0 > self.p.start_unload_s:
+            # (ours) out of standing the CoP is between the feet and both legs' leaf springs
+            # are loaded. The CoP target of (2) at f = 0 is the trailing foot: the leading
+            # foot's planned force fell from 87 to 2 N a point in one tick, its springs let go
+            # and lifted it 2-3 cm while the QP still counted on it, and it slid 2-23 cm
+            # inward within 0.15 s (measured after 0.05-1.0 s of standing, ground truth and
+            # perception alike; the start at the first tick, with no standing, never did).
+            # So it keeps at least its standing share, unloaded to ``start_fz_min`` over
+            # ``start_unload_s``: the CoP follows (2) as far as that allows. Only in a double
+            # stance longer than that, the MPFC's weight shift from rest
+            # (``GaitClock.from_standing``): one of T_ds ends before the floor comes off.
+            if self._start_t is None:
+                self._start_t = t
+            p = self.p
+            left = 1.0 - (t - self._start_t) / p.start_unload_s if p.start_unload_s > 0 else 0.0
+            share = 0.25 * m.mass * 9.81 * left
+            self._floor[:] = 0.0
+            self._floor[2 * stance : 2 * stance + 2] = max(p.start_fz_min, share)
+            self.fz_floor = self._floor
         if self.p.ankle_torque_weight > 0.0:
             qp.moment_target[0] = qp.moment_target[1] = 0.0
             qp.moment_count = 2
@@ -464,11 +490,15 @@ class WalkingController:
             return f
         return -1.0
 
-    def reset(self) -> None:
-        """Start a new walking episode: filters and swing plan from scratch."""
+    def reset(self, from_standing: bool = False) -> None:
+        """Start a new walking episode: filters and swing plan from scratch;
+        ``from_standing``: out of the standing controller (``_double_stance``)."""
         self.plane.reset()
         self._swing_key = None
         self.swing.active = False
+        self.from_standing = from_standing
+        self.fz_floor = None
+        self._start_t = None
 
     def add_tasks(self, rows: TaskRows, log: TaskLog, qp: OscQP, m: CassieModel, q: np.ndarray,
                   v: np.ndarray, t: float, plan: Any, ph: GaitPhase,
@@ -488,7 +518,10 @@ class WalkingController:
         z, zd, kx = self.plane.reference(t, stance_pos, next_pos, yaw, m.com_l, m.com_vel_l)
 
         qp.moment_count = 0
-        if not ph.single_stance:
+        if ph.single_stance:
+            self.from_standing = False  # (its first double stance is over)
+            self.fz_floor = None
+        else:
             self._swing_key = None
             cop_f = self._double_stance(qp, m, plan, t, st)
             rows.n = walking_rows(m.kin, m.Jc_dot_v, m.q, m.v, rows.ri, rows.rf, rows.n,

@@ -167,6 +167,46 @@ def test_double_stance_unloads_the_trailing_foot_linearly(q_stand):
     assert loads[-1] < 1e-6  # fully unloaded at the end of double stance
 
 
+def test_walking_out_of_standing_keeps_the_leading_foot_loaded_then_unloads_it_slowly(q_stand):
+    """Handed over from standing into the MPFC's weight shift (a double stance longer than
+    ``start_unload_s``), the leading foot carries at least its standing share (m g / 4 a
+    point) falling to ``start_fz_min`` over ``start_unload_s`` (at the paper's CoP target, the
+    trailing foot, it lost 85 N a point in a tick and lifted); a walk begun at the second tick
+    (the springs not loaded yet) or into a double stance of T_ds has no such floor."""
+    osc = OscController()
+    p = osc.params.walking
+    for k in range(60):  # stand first, 30 ms (``STOOD_LOADED_S``: the springs loaded)
+        osc.update(0.0005 * k, q_stand, np.zeros(32))
+    cm = osc.model
+    share = 0.25 * cm.mass * 9.81
+    t0 = 0.03
+    plan = _Plan(DOUBLE_AFTER_LEFT, t0, t0 + 0.5, cm.p_contact[0:2].mean(axis=0),
+                 cm.p_contact[2:4].mean(axis=0))
+    plan.ankle_torque = 0.0
+    for k in range(0, 401, 4):
+        t = t0 + 0.0005 * k
+        _, dbg = osc.update(t, q_stand, np.zeros(32), plan, _Cmd())
+        assert dbg.qp_status == 1 and osc.mode == 0
+        lead = osc.qp.lam.reshape(4, 3)[0:2, 2]
+        floor = max(p.start_fz_min, share * (1.0 - (t - t0) / p.start_unload_s))
+        assert np.all(lead >= floor - 1e-6), (t, lead, floor)
+    ss = _Plan(SINGLE_LEFT, t0 + 0.5, t0 + 0.8, plan.stance_foot_world, plan.next_footstep_world)
+    osc.update(t0 + 0.5, q_stand, np.zeros(32), ss, _Cmd())
+    assert osc.walking.fz_floor is None and not osc.walking.from_standing
+
+    first = OscController()  # walks at its second tick (the harness's start): no floor
+    first.update(0.0, q_stand, np.zeros(32))
+    first.update(0.0005, q_stand, np.zeros(32), plan, _Cmd())
+    assert first.mode == 0 and first.walking.fz_floor is None
+
+    short = OscController()  # out of standing into a double stance of T_ds: no time for it
+    for k in range(60):
+        short.update(0.0005 * k, q_stand, np.zeros(32))
+    plan.prev_switch_time_s, plan.next_switch_time_s = t0, t0 + 0.1
+    short.update(t0, q_stand, np.zeros(32), plan, _Cmd())
+    assert short.mode == 0 and short.walking.fz_floor is None
+
+
 def test_closed_form_optimum_matches_piqp_when_it_certifies_one():
     """The compiled active-set solve returns piqp's optimum (tightly converged), or None."""
     from processes.osc.qp import _Solver
