@@ -66,6 +66,19 @@ class GaitClock:
             self.next_touchdown_s = self.touchdown_s + self.step_period_s
         return False
 
+    def from_standing(self, t: float) -> None:
+        """Walk on from standing (a stop the robot came to rest in): this stance begins at
+        ``t`` with the start's longer double stance, as the first start from standing does
+        (ours). After a stop the OSC stood with the feet 27 cm apart; walking on with T_ds the
+        swing began with the CoM 13 cm outside the stance foot, a 24 cm capture step sideways
+        followed, and the walk drifted 20 cm off a beam's line (measured with perception).
+        The weight shift needs the OSC's hand-over from standing to keep the new stance foot
+        loaded (``WalkingController._double_stance``): without it that foot slid 7 cm inward
+        in this double stance and every perception beam width fell at 2.8 s (measured)."""
+        self.touchdown_s = t
+        self.extra_ds_s = self.start_extra_s
+        self.next_touchdown_s = t + self.step_period_s + self.extra_ds_s
+
     def first_stance(self, in_contact: Sequence[bool]) -> int | None:
         """The stance the gait clock starts on, or None to wait for one.
 
@@ -322,9 +335,10 @@ class Halt:
     for the radio's stand). It goes on (``RUNNING``) once both feet in turn find a foothold
     ahead (``WALK_ON_TOUCHDOWNS`` touchdowns in a row: a command in another direction,
     perception's new footholds), and the way goes on past the next foothold too
-    (``foothold_ahead``'s ``beyond``). (Going on at the first, the right foot on a beam too
-    narrow for the left to pass beside it stopped, the left foot on the platform went on, and
-    so on until Cassie fell: measured on a 15 cm beam.)"""
+    (``foothold_ahead``'s ``beyond``); from rest, the node begins that stance with the
+    start's weight shift (``GaitClock.from_standing``). (Going on at the first, the right
+    foot on a beam too narrow for the left to pass beside it stopped, the left foot on the
+    platform went on, and so on until Cassie fell: measured on a 15 cm beam.)"""
 
     RUNNING, STOPPING = "running", "stopping"
     WALK_ON_TOUCHDOWNS = 2

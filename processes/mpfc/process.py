@@ -88,6 +88,10 @@ GAIT_DS = (mpfc_output_t.GAIT_DS_AFTER_LEFT, mpfc_output_t.GAIT_DS_AFTER_RIGHT) 
 GAIT_STANDING = mpfc_output_t.GAIT_STANDING
 STATUS = {"optimal": 0, "time_limited": 1, "infeasible": 2}
 DEFAULT_MAX_HEIGHT_M = 0.2  # one 15 cm tread (Fig. 11), Table I's stone heights, and a margin
+#: the crossover margin while stepping to a stop (ours): the OSC stands only on feet 7 cm or
+#: more apart across (``processes.osc.controller.STAND_MIN_WIDTH_M``); with the gait's 6 cm a
+#: stop on one stone ended with the feet 5 cm apart and in line, stepping until it fell
+STOP_CROSSOVER_M = 0.10
 VARIANTS = ("hardware", "simulation")  # the columns of Table V
 
 #: the gains file (hw_config/gains/mpfc.yaml): Table V, in the column ``Params.variant`` names
@@ -249,7 +253,8 @@ class MpfcNode(Node):
         yaw = self.kin.pelvis_yaw()
         p = self.params
         clock = self.clock
-        if clock.advance(t, state.in_contact, bool(np.hypot(v[0], v[1]) < 0.1)):
+        at_rest = bool(np.hypot(v[0], v[1]) < 0.1)
+        if clock.advance(t, state.in_contact, at_rest):
             self.solver.reset()
         if clock.stance is None:
             self.last_status = ("started with a foot in the air: waiting for its touchdown "
@@ -277,9 +282,16 @@ class MpfcNode(Node):
             self.halt_since_s = t if stopping else -1.0
             self.halt_xy = ((float(self.stance_pos[0]), float(self.stance_pos[1])) if stopping
                             else (math.nan, math.nan))
+            if not stopping and at_rest and all(state.in_contact):
+                clock.from_standing(t)  # walking on from standing: the start's weight shift
+                self.solver.reset()
         in_ds, _, liftoff = clock.phase(t, p.t_ds_s)
         stopping = self.halt.state == Halt.STOPPING
         vdes, footholds = self._guided(t, yaw)
+        widen = getattr(self.solver, "set_crossover_margin", None)
+        if widen is not None:
+            widen(max(STOP_CROSSOVER_M, p.crossover_margin_m) if stopping
+                  else p.crossover_margin_m)
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",

@@ -159,6 +159,11 @@ class MpfcSolver:
         """Forget the previous solution (no incumbent, no trust region)."""
         self._prev = None
 
+    def set_crossover_margin(self, margin_m: float) -> None:
+        """The crossover rows' margin for the next solves (``crossover_margin_m`` by default;
+        the node widens it while stepping to a stop, ``processes.mpfc.process``)."""
+        self.model._hx[:] = -margin_m
+
     def _world_footholds(self, footholds: list[Foothold]) -> WorldFootholds:
         return self._footholds.world(footholds)
 

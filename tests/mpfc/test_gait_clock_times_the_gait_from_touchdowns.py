@@ -54,3 +54,17 @@ def test_a_start_while_moving_takes_no_weight_shift() -> None:
     c = GaitClock(T_SS + T_DS, T_DS, start_ds_s=0.4)
     assert c.advance(1.0, (True, True), at_rest=False)
     assert c.phase(1.15, T_DS)[0] is False and c.next_touchdown_s == pytest.approx(1.4)
+
+
+def test_walking_on_from_standing_takes_the_starts_weight_shift_on_the_same_stance() -> None:
+    c = GaitClock(T_SS + T_DS, T_DS, start_ds_s=0.4)
+    c.advance(0.0, (True, True), at_rest=False)
+    for t in (0.4, 0.8, 1.2):  # stood in a stop: the clock went on swapping stances
+        c.advance(t, (True, True))
+    stance = c.stance
+    c.from_standing(1.2)  # the way on found at this touchdown, the robot at rest
+    assert c.stance == stance
+    assert c.phase(1.55, T_DS) == (True, pytest.approx(1.2), pytest.approx(1.6))  # shifting
+    assert c.remaining(1.4) == pytest.approx(T_SS + T_DS)
+    assert not c.advance(1.85, (True, True)) and c.stance == stance  # its swing (to 1.9)
+    assert not c.advance(1.95, (True, True)) and c.stance == 1 - stance

@@ -69,3 +69,24 @@ def test_nominal_walk_on_open_ground_steps_at_the_nominal_width(params) -> None:
     assert np.isclose(sol.footsteps[1, 1] - sol.footsteps[0, 1], params.step_width_m, atol=0.03)
     assert abs(sol.t_remaining_opt_s - 0.3) < 0.01
     assert abs(sol.ankle_torque_nm) < 2.0
+
+
+def test_a_wider_crossover_margin_keeps_the_feet_that_far_apart_across(params) -> None:
+    """``set_crossover_margin``: stepping to a stop the node asks 10 cm across instead of the
+    gait's 6 (``STOP_CROSSOVER_M``: the OSC stands only on feet 7 cm or more apart). At rest
+    over the left foot the right foot goes to the margin, whichever it is, and back."""
+    import dataclasses
+
+    from processes.mpfc.process import STOP_CROSSOVER_M
+    from runtime.geometry import Foothold
+
+    p = dataclasses.replace(params, crossover_margin_m=0.06)
+    solver = MpfcSolver(p)
+    ground = Foothold.from_polygon(np.array([[-3, -3], [3, -3], [3, 3], [-3, 3]], dtype=float))
+    at_rest = np.zeros(4)  # the CoM over the left foot, still
+    for margin in (0.06, STOP_CROSSOVER_M, 0.06):
+        solver.reset()
+        solver.set_crossover_margin(margin)
+        sol = solver.solve(at_rest, "left", np.zeros(3), 0.3, np.zeros(2), [ground])
+        assert sol.status == "optimal"
+        assert np.isclose(sol.footsteps[0, 1], -margin, atol=1e-3), (margin, sol.footsteps)

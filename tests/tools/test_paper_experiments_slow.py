@@ -27,3 +27,12 @@ def test_the_23_cm_beam_and_the_27_cm_stairs_are_crossed_with_ground_truth():
     stairs = run_trial("stairs", 15.0, 0, None, False, 0.375, PROFILE, true_state=True)
     assert beam.crossed and not beam.fell, beam
     assert stairs.crossed and not stairs.fell, stairs
+
+
+def test_the_35_cm_beam_is_crossed_with_perception_after_the_starts_stop():
+    """With perception the gait stops at the start (no footholds before the first map) and
+    walks on from standing: the start's weight shift with the leading foot kept loaded
+    (``GaitClock.from_standing``, ``WalkingController._double_stance``). Before, it walked
+    on with a 24 cm capture step, or the new stance foot slid 7 cm, and fell off the beam."""
+    beam = run_trial("beam", 30.0, 0, None, True, 0.375, PROFILE, size=0.35)
+    assert beam.halts >= 1 and beam.crossed and not beam.fell, beam
