@@ -182,6 +182,8 @@ class MpfcNode(Node):
         self.guide_fallbacks = 0  # ... of which the narrowing left none and all were kept
         # (the gait clock is the MPFC's, T_ss + T_ds, whichever planner plans the steps)
         self.solver: FootstepSolver = solver if solver is not None else MpfcSolver(params)
+        #: the MPFC's stop margin (``STOP_CROSSOVER_M``); None for a planner without one (DCM)
+        self._set_margin = getattr(self.solver, "set_crossover_margin", None)
         self.kin = AlipKinematics()
         self.source = source
         self.footholds = static_footholds
@@ -288,10 +290,9 @@ class MpfcNode(Node):
         in_ds, _, liftoff = clock.phase(t, p.t_ds_s)
         stopping = self.halt.state == Halt.STOPPING
         vdes, footholds = self._guided(t, yaw)
-        widen = getattr(self.solver, "set_crossover_margin", None)
-        if widen is not None:
-            widen(max(STOP_CROSSOVER_M, p.crossover_margin_m) if stopping
-                  else p.crossover_margin_m)
+        if self._set_margin is not None:
+            self._set_margin(max(STOP_CROSSOVER_M, p.crossover_margin_m) if stopping
+                             else p.crossover_margin_m)
         sol = self.solver.solve(
             x,
             "left" if self.stance == LEFT else "right",

@@ -203,13 +203,7 @@ class _Solver:
         default = min(caps) >= fmax
         if default and self._caps_default:
             return  # the usual single-stance case: nothing to compare or copy
-        x_u = self.x_u
-        for i, cap in enumerate(caps):
-            j = self._fz_idx_list[i]
-            cap = min(cap, fmax)
-            if x_u[j] != cap:
-                x_u[j] = cap
-                self._bounds_changed = True
+        self._write_fz(self.x_u, [min(cap, fmax) for cap in caps])
         self._caps_default = default
 
     def set_fz_min(self, floors: Sequence[float] | None) -> None:
@@ -220,14 +214,16 @@ class _Solver:
             if self._floors_default:
                 return
             floors = [self.fz_min] * len(self._fz_idx_list)
-        x_l = self.x_l
-        for i, floor in enumerate(floors):
-            j = self._fz_idx_list[i]
-            floor = max(floor, self.fz_min)
-            if x_l[j] != floor:
-                x_l[j] = floor
-                self._bounds_changed = True
+        self._write_fz(self.x_l, [max(floor, self.fz_min) for floor in floors])
         self._floors_default = all(f <= self.fz_min for f in floors)
+
+    def _write_fz(self, bounds: np.ndarray, values: Sequence[float]) -> None:
+        """Write per-point normal-force bounds into ``bounds`` (x_l or x_u), noting a change
+        for piqp's next update."""
+        for j, value in zip(self._fz_idx_list, values, strict=True):
+            if bounds[j] != value:
+                bounds[j] = value
+                self._bounds_changed = True
 
     def closed_form(self, P: np.ndarray, c: np.ndarray) -> np.ndarray | None:
         """The QP's exact optimum without piqp when it can be certified, else None.
@@ -355,16 +351,9 @@ class OscQP:
         solver = self._solvers.get((nc, fz_min))
         if solver is None:
             solver = self._solver(nc, fz_min)
-        if fz_max is None:
-            solver.set_fz_max(self._fz_default[:nc])
-        else:
-            caps = fz_max.tolist()
-            solver.set_fz_max([caps[i] for i in points])
-        if fz_floor is None:
-            solver.set_fz_min(None)
-        else:
-            floors = fz_floor.tolist()
-            solver.set_fz_min([floors[i] for i in points])
+        solver.set_fz_max(self._fz_default[:nc] if fz_max is None
+                          else [fz_max[i] for i in points])
+        solver.set_fz_min(None if fz_floor is None else [fz_floor[i] for i in points])
         self._last = (P, c, solver)
         t1 = time.perf_counter()
         x = solver.closed_form(P, c) if self.closed_form_first else None
