@@ -7,7 +7,12 @@ platform or the landing) a trial succeeds when the robot reaches that surface (i
 ``GOAL_PAST_M`` past the surface's near edge) without a fall and with no footstep outside a
 foothold; it is "crossed" when it reaches it without a fall, footsteps aside (the paper's plain
 traversal). On flat ground (no end) it succeeds with no fall, the mean speed within 15 % of the
-command and no footstep outside; crossed is no fall."""
+command and no footstep outside; crossed is no fall.
+
+Beside the verdict, how each foot landed against the footstep planner's last target for it
+(the plan channel's ``next_footstep_world``) and how late that target last moved: where a
+footstep outside a foothold came from a target the swing could not follow, or a swing that
+missed a settled one."""
 
 from __future__ import annotations
 
@@ -19,6 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from lcmtypes import mpfc_output_t
+
+STANDING_GAIT = mpfc_output_t.GAIT_STANDING  # a plan that takes no step
 FALL_HEIGHT_M = 0.6
 MIN_SWING_S = 0.1  # shorter airborne spells are contact flicker, not steps
 HEADING_GAIN = 1.0  # operator's yaw rate per radian of heading error (Section VIII-A)
@@ -32,6 +40,14 @@ HALT_BEFORE_FALL_S = 0.4  # a stop that began this long before a fall (a step) p
 #: 0.375 m/s the long steps bring it to 0.8-0.9 m/s; a stop begun at 1.1-1.4 m/s came after a
 #: 0.7-1.06 m step that had already thrown the robot (measured, d_min 40-50 cm), not before
 HALT_MAX_SPEED_MPS = 1.0
+#: a footstep's planned target counts as moved when it shifts this far from where it last
+#: moved to (m; the MPFC re-solves at 200 Hz and its footstep wanders by millimetres)
+TARGET_MOVE_M = 0.01
+#: a touchdown whose target moved less than this before it had a late target (s): a swing
+#: (0.3 s, Table V) cannot follow a move that late (Opt-T's targets with perception moved
+#: 35-125 ms before touchdown where a foot landed off its stone; Fixed-T's settle 0.28 s or
+#: more before: measured, d_min 45 cm seed 2009)
+LATE_TARGET_S = 0.1
 
 
 @dataclass
@@ -67,6 +83,15 @@ class Trial:
     #: both feet on true footholds (the sim's, less 2 cm) when that stop began: a stop with a
     #: foot already on an edge or in the pit is one the robot began falling into
     halt_feet_on_footholds: bool = True
+    #: where each foot touched down against the footstep planner's last target for it (its
+    #: plan's next_footstep_world, horizontal): median, 90th percentile, largest (m); the
+    #: touchdowns with a target, and those whose target had moved within LATE_TARGET_S of
+    #: it (-1 and 0 without plans: a trial without the MPFC, a record made before)
+    landing_error_median_m: float = -1.0
+    landing_error_p90_m: float = -1.0
+    landing_error_max_m: float = -1.0
+    landings: int = 0
+    late_targets: int = 0
 
     @property
     def fell_while_stopped(self) -> bool:
@@ -115,8 +140,38 @@ class Judge:
         self.prev_contact = [True, True]
         self.lift_t = [-1.0, -1.0]  # when each foot last left the ground
         self.touchdowns: list[tuple[float, np.ndarray]] = []
+        #: per foot, the planner's newest target for it (world xy), where and when it last
+        #: moved by TARGET_MOVE_M; and per touchdown with a target: (t, foot, error m,
+        #: seconds since its target last moved)
+        self._target: list[np.ndarray | None] = [None, None]
+        self._moved: list[tuple[np.ndarray, float] | None] = [None, None]
+        self.landings: list[tuple[float, int, float, float]] = []
         self._speed: list[tuple[float, float]] = []  # (t, CoM horizontal speed) per message
         self._feet: list[tuple[float, float, float, float]] = []  # (xl, yl, xr, yr) ditto
+
+    def on_plan(self, t_us: int, plan: Any) -> None:
+        """The footstep planner's plan (``mpfc_output_t``): its swing foot's target, and when
+        that target last moved. A standing plan has no step to take."""
+        if int(plan.gait_state) == STANDING_GAIT or int(plan.stance) not in (0, 1):
+            return
+        t = plan.header.utime * 1e-6
+        swing = 1 - int(plan.stance)
+        xy = np.array(plan.next_footstep_world[:2], dtype=float)
+        if not np.all(np.isfinite(xy)):
+            return
+        self._target[swing] = xy
+        moved = self._moved[swing]
+        if moved is None or math.hypot(*(xy - moved[0])) > TARGET_MOVE_M:
+            self._moved[swing] = (xy, t)
+
+    def _landed(self, t: float, foot: int, pos: np.ndarray) -> None:
+        """A touchdown of ``foot`` at ``pos``: its error against the target planned for it,
+        which is then spent."""
+        target, moved = self._target[foot], self._moved[foot]
+        if target is not None and moved is not None:
+            self.landings.append((t, foot, math.hypot(pos[0] - target[0], pos[1] - target[1]),
+                                  t - moved[1]))
+        self._target[foot] = self._moved[foot] = None
 
     def on_foothold(self, x: float, y: float) -> bool:
         """(x, y) lies on a foothold of the course (False without footholds)."""
@@ -170,6 +225,7 @@ class Judge:
                     and t - self.lift_t[i] >= MIN_SWING_S
                 ):
                     self.touchdowns.append((t, np.asarray(gt.foot_pos[i], dtype=float)))
+                    self._landed(t, i, self.touchdowns[-1][1])
         self.prev_contact = list(gt.foot_contact)
 
     def finished(self, linger_s: float = 2.0) -> bool:
@@ -199,6 +255,13 @@ def _verdict(trial: Trial, judge: Judge, launch: list[str]) -> Trial:
     trial.velocity_error_ratio = (abs(trial.mean_velocity_mps - vx) / abs(vx)) if vx else 0.0
     trial.footsteps = len(judge.touchdowns)
     trial.footsteps_outside = judge.outside()
+    if judge.landings:
+        err = np.array([e for _, _, e, _ in judge.landings])
+        trial.landing_error_median_m = float(np.median(err))
+        trial.landing_error_p90_m = float(np.percentile(err, 90))
+        trial.landing_error_max_m = float(err.max())
+        trial.landings = len(err)
+        trial.late_targets = sum(s < LATE_TARGET_S for _, _, _, s in judge.landings)
     trial.goal_x_m = judge.goal_x
     trial.reached_goal_s = judge.goal_t if judge.goal_t is not None else -1.0
     if judge.goal_x is None:

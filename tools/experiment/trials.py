@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from lcmtypes import ground_truth_t, robot_state_t
+from lcmtypes import ground_truth_t, mpfc_output_t, robot_state_t
 from runtime.cassie_packets import STATUS_HOLDER_ENGAGED
 from runtime.config import HW_CONFIG_DIR
 from runtime.harness import Binding, Harness
@@ -99,6 +99,7 @@ def run_trial(
         )
         judge = Judge(footholds, walk_start_s=0.0, ground=ground, goal_x=goal)
         h.tap(gt_channel, judge)
+        h.tap(profile.channels["plan"].name, judge.on_plan)
         if setup is not None:
             setup(h)
         t0 = time.perf_counter()
@@ -203,8 +204,15 @@ def run_live_trial(
             if not st.target_status & STATUS_HOLDER_ENGAGED:
                 judge.walk_start_s = st.header.utime * 1e-6
 
+        def on_plan(_channel: str, data: bytes) -> None:
+            try:
+                judge.on_plan(0, mpfc_output_t.decode(data))
+            except (ValueError, KeyError):
+                return
+
         bus.subscribe_raw(f"^{profile.channels['ground_truth'].name}$", on_gt)
         bus.subscribe_raw(f"^{profile.channels['network_state'].name}$", on_state)
+        bus.subscribe_raw(f"^{profile.channels['plan'].name}$", on_plan)
         cmd_channel = profile.channels["command"].name
         out = (logs / "supervisor.txt").open("w")
         sup = subprocess.Popen(
